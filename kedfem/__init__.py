@@ -1,0 +1,14 @@
+"""kedfem: finite-element Kineto-ElastoDynamics of planar elastic linkages."""
+
+from .errors import (ConvergenceWarning, InputError, InstabilityWarning, KedError,
+                     KinematicsError, MobilityError, ResonanceError, SingularMassError)
+from .materials import Material, Section
+from .mechanism import Mechanism
+from .kinematics import Motion, kinematics, kinematics_at, static_motion
+from .assembly import FEModel
+from .effects import EFFECTS, ModalDamping, Rayleigh
+from .kinetostatics import kinetostatics
+from .modal import ModalResult, global_matrices, natural_frequencies
+
+__version__ = "0.1.0"
+from .statics import StaticResult, static_response

@@ -1,0 +1,730 @@
+"""DOF numbering from the mechanism graph, constraint maps and scatter.
+
+Elastic displacements are expressed in the global frame. Every component
+(beam element, rigid member's mass, point mass, spring, load) acts on a few
+*entities*: translation points (2 components) and rotations (1). An entity
+is an affine function of the independent generalized coordinates ``q``:
+
+* points: ``fixed`` (ground joint), ``free`` (two q's), ``slider`` (one q
+  along the slider's axis) or ``body`` (slaved to a rigid member group:
+  ``x_P = x_ref + phi S rho_P(t)`` with ``rho_P = r_P - r_ref`` turning with
+  the member),
+* rotations: ``free`` (own q), ``fixed`` or ``tied`` to a master rotation,
+  plus a prescribed offset ``p(t)`` where an elastically clamped end sits on
+  a kinematic pin (the change of relative rigid-body angle).
+
+Per component the element DOFs are ``x = E(t) q_e + p(t)``; the assembler
+forms ``E^T M E``, ``E^T (C E + 2 M E')``, ``E^T (K E + C E' + M E'')`` and
+``E^T (Q - M p'' - C p' - K p)`` batched over time nodes and elements, and
+scatters them once through a sparse operator built from the element DOF
+index map (``(n_el, m)``, COO -> CSR).
+
+Rules (DESIGN.md section 2): revolute joints share translations and keep
+separate rotations; welded joints share rotations; sliders constrain the
+normal direction; rigid links add no elastic DOFs of their own (a rigid
+member group has at most a reference translation and one rotation); the
+driven member's elastic rotation at its ground joint is fixed, or tied to
+the motor through the drive's torsional spring.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from .errors import InputError
+from .kinematics import Motion
+from .mechanism import Mechanism
+
+__all__ = ["FEModel", "GroupMap", "PointDof", "RotDof", "Group"]
+
+log = logging.getLogger(__name__)
+
+_S = np.array([[0.0, -1.0], [1.0, 0.0]])
+
+
+@dataclass(frozen=True)
+class PointDof:
+    """A translation entity (see module docstring)."""
+
+    kind: str
+    label: str
+    cols: tuple[int, ...] = ()
+    axis: tuple[float, float] | None = None
+    parent: int = -1
+    phi: int = -1
+    loc: tuple = ()
+
+
+@dataclass(frozen=True)
+class RotDof:
+    """A rotation entity: ``theta_e = q[cols] + offset``.
+
+    The offset is ``(theta_master - theta_master_ref) - (theta_member -
+    theta_member_ref)`` when ``offset`` is True (``master`` None = frame).
+    """
+
+    kind: str
+    label: str
+    cols: tuple[int, ...] = ()
+    member: str | None = None
+    master: str | None = None
+    offset: bool = False
+
+
+@dataclass
+class Group:
+    """Components of one kind: entity layout and entity ids per element."""
+
+    name: str
+    layout: tuple[str, ...]
+    ids: np.ndarray  # (n_el, len(layout)), -1 = frame (fixed, no DOFs)
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def n(self) -> int:
+        return int(self.ids.shape[0])
+
+    @property
+    def d(self) -> int:
+        return sum(2 if s == "P" else 1 for s in self.layout)
+
+
+@dataclass(frozen=True)
+class GroupMap:
+    """Time-sampled constraint map of one group (``nt`` time nodes).
+
+    ``cols``: (n_el, m) global q index per element column (``n_dof`` = padding);
+    ``E, E1, E2``: (nt or 1, n_el, d, m) map and its first and second time
+    derivatives; ``p, p1, p2``: (nt or 1, n_el, d) prescribed offsets.
+    """
+
+    cols: np.ndarray
+    E: np.ndarray
+    E1: np.ndarray | None
+    E2: np.ndarray | None
+    p: np.ndarray | None
+    p1: np.ndarray | None
+    p2: np.ndarray | None
+
+
+@dataclass(frozen=True)
+class BeamData:
+    """Flexible-link elements, concatenated over links (arrays of shape (n_el,))."""
+
+    link: np.ndarray        # index into links list
+    links: tuple[str, ...]
+    L: np.ndarray
+    EA: np.ndarray
+    EI: np.ndarray
+    rhoA: np.ndarray
+    GAs: np.ndarray
+    s1: np.ndarray          # start of element from joint a [m]
+    lumped: np.ndarray      # bool
+    timoshenko: np.ndarray  # bool
+    first: dict             # link name -> first element index
+    count: dict             # link name -> number of elements
+
+
+class FEModel:
+    """Finite-element model of a mechanism: DOF map and element groups.
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+        The mechanism (validated here).
+
+    Attributes
+    ----------
+    n_dof : int
+        Number of independent elastic DOFs ``N``.
+    dof_labels : list of str
+        One label per DOF, e.g. ``"B.ux"``, ``"rod.n3.theta"``.
+    groups : dict of str -> Group
+        ``beam``, ``rigid``, ``pmass``, ``spring``, ``tspring``, ``load``.
+    """
+
+    def __init__(self, mechanism: Mechanism):
+        mechanism.validate()
+        self.mech = mechanism
+        self.points: list[PointDof] = []
+        self.rots: list[RotDof] = []
+        self.dof_labels: list[str] = []
+        self.joint_point: dict[str, int] = {}
+        self.end_rot: dict[tuple[str, str], int] = {}   # (flexible link, joint) -> rot id
+        self.member_rot: dict[str, int] = {}            # rigid member -> group rot id (-1 fixed)
+        self.member_com: dict[str, int] = {}            # rigid member -> CoM point id
+        self.rigid_groups: list[dict] = []
+        self._build_rigid_groups()
+        self._build_joint_points()
+        self._build_beams()
+        self._build_groups()
+        self.n_dof = len(self.dof_labels)
+        if self.n_dof == 0:
+            raise InputError(f"{mechanism.name}: the model has no elastic DOFs (all links rigid and fixed)")
+        self._scatter_cache: dict = {}
+        self._static_cache: dict = {}
+        log.debug("FE model of %s: %d DOFs, %d beam elements", mechanism.name, self.n_dof,
+                  self.beam.L.size)
+
+    # ------------------------------------------------------------------ build
+    def _new_q(self, label: str) -> int:
+        self.dof_labels.append(label)
+        return len(self.dof_labels) - 1
+
+    def _add_point(self, pd: PointDof) -> int:
+        self.points.append(pd)
+        return len(self.points) - 1
+
+    def _add_rot(self, rd: RotDof) -> int:
+        self.rots.append(rd)
+        return len(self.rots) - 1
+
+    def _member_joints(self, name):
+        mech = self.mech
+        return mech.links[name].joints if name in mech.links else mech.bodies[name].joints
+
+    def _com_loc(self, name):
+        mech = self.mech
+        if name in mech.links:
+            lk = mech.links[name]
+            a, b = np.array(mech.joints[lk.a].at), np.array(mech.joints[lk.b].at)
+            return ("member", name, lk.a, 0.5 * (b - a))
+        body = mech.bodies[name]
+        o = body.joints[0]
+        return ("member", name, o, np.array(body.cm) - np.array(mech.joints[o].at))
+
+    def _build_rigid_groups(self):
+        mech = self.mech
+        rigid = [n for n, lk in mech.links.items() if lk.rigid] + list(mech.bodies)
+        # union-find over welded joints
+        parent = {m: m for m in rigid}
+
+        def find(x):
+            while parent[x] != x:
+                parent[x] = parent[parent[x]]
+                x = parent[x]
+            return x
+
+        for j in mech.joints.values():
+            if j.welded and j.kind != "ground":
+                here = [m for m in mech.members_at(j.name) if m in parent]
+                for m in here[1:]:
+                    parent[find(m)] = find(here[0])
+        groups: dict[str, list[str]] = {}
+        for m in rigid:
+            groups.setdefault(find(m), []).append(m)
+        glist = list(groups.values())
+        atts = [{j for m in g for j in self._member_joints(m)} for g in glist]
+        # resolution order: breadth first from grounded groups through shared joints,
+        # so that a group pinned to an already resolved group takes that joint as reference
+        grounded = [i for i, a in enumerate(atts)
+                    if any(mech.joints[j].kind == "ground" for j in a)]
+        order, seen = [], set()
+        starts = grounded + [i for i in range(len(glist)) if i not in grounded]
+        for s0 in starts:
+            if s0 in seen:
+                continue
+            queue = [s0]
+            seen.add(s0)
+            while queue:
+                i = queue.pop(0)
+                order.append(i)
+                for k in range(len(glist)):
+                    if k not in seen and atts[i] & atts[k]:
+                        seen.add(k)
+                        queue.append(k)
+        self._rigid_joint_points = {}
+        for i in order:
+            self._resolve_rigid_group(glist[i])
+
+    def _resolve_rigid_group(self, members):
+        mech = self.mech
+        name = "+".join(members)
+        atts = []
+        for m in members:
+            for j in self._member_joints(m):
+                if j not in atts:
+                    atts.append(j)
+        sliders = [j for j in atts if mech.joints[j].kind == "slider"]
+        if sliders:
+            raise InputError(f"rigid member '{members[0]}' attaches to slider joint '{sliders[0]}': a slider on "
+                             "a rigid member is not supported; make that link flexible")
+        grounded = [j for j in atts if mech.joints[j].kind == "ground"]
+        shared = [j for j in atts if j in self._rigid_joint_points]
+        drive = next((mech.driven(m) for m in members if mech.driven(m) is not None), None)
+        if len(grounded) >= 2:
+            ref_pt = self._add_point(PointDof("fixed", f"{name}.ref"))
+            phi = -1
+        elif len(grounded) == 1:
+            g = grounded[0]
+            ref_pt = self._add_point(PointDof("fixed", g, loc=("joint", g)))
+            self._rigid_joint_points[g] = ref_pt
+            if mech.joints[g].welded:
+                phi = -1
+            elif drive is not None:
+                if drive.torsional_stiffness is not None:
+                    q = self._new_q(f"{drive.member}.phi")
+                    phi = self._add_rot(RotDof("free", f"{drive.member}.phi", (q,), members[0]))
+                else:
+                    phi = -1
+            else:
+                q = self._new_q(f"{name}.phi")
+                phi = self._add_rot(RotDof("free", f"{name}.phi", (q,), members[0]))
+        else:
+            if len(shared) > 1:
+                raise InputError(f"rigid members '{name}' and their neighbours form a closed rigid chain "
+                                 f"through joints {', '.join(shared)}: make one of these links flexible")
+            if shared:
+                ref_pt = self._rigid_joint_points[shared[0]]
+            else:
+                loc = self._com_loc(members[0])
+                qx = self._new_q(f"{members[0]}.ux")
+                qy = self._new_q(f"{members[0]}.uy")
+                ref_pt = self._add_point(PointDof("free", f"{members[0]}.cm", (qx, qy), loc=loc))
+            q = self._new_q(f"{name}.phi")
+            phi = self._add_rot(RotDof("free", f"{name}.phi", (q,), members[0]))
+        ref_loc = self.points[ref_pt].loc
+
+        def slaved(label, loc):
+            pdef = self.points[ref_pt]
+            if phi < 0 and pdef.kind == "fixed":
+                return self._add_point(PointDof("fixed", label, loc=loc))
+            return self._add_point(PointDof("body", label, parent=ref_pt, phi=phi, loc=loc))
+
+        for j in atts:
+            if j in self._rigid_joint_points:
+                continue
+            self._rigid_joint_points[j] = slaved(j, ("joint", j))
+        for m in members:
+            loc = self._com_loc(m)
+            if ref_loc and ref_loc[0] == "member" and ref_loc[1] == m:
+                self.member_com[m] = ref_pt
+            else:
+                self.member_com[m] = slaved(f"{m}.cm", loc)
+            self.member_rot[m] = phi
+        self.rigid_groups.append({"members": tuple(members), "ref": ref_pt, "phi": phi,
+                                  "drive": drive})
+
+    def _build_joint_points(self):
+        mech = self.mech
+        for jn, j in mech.joints.items():
+            if jn in self._rigid_joint_points:
+                self.joint_point[jn] = self._rigid_joint_points[jn]
+            elif j.kind == "ground":
+                self.joint_point[jn] = self._add_point(PointDof("fixed", jn, loc=("joint", jn)))
+            elif j.kind == "slider":
+                q = self._new_q(f"{jn}.s")
+                self.joint_point[jn] = self._add_point(PointDof("slider", jn, (q,), axis=j.axis,
+                                                                loc=("joint", jn)))
+            else:
+                qx = self._new_q(f"{jn}.ux")
+                qy = self._new_q(f"{jn}.uy")
+                self.joint_point[jn] = self._add_point(PointDof("free", jn, (qx, qy), loc=("joint", jn)))
+
+    def _end_rotation(self, lk, joint, k, clamp_groups):
+        mech = self.mech
+        jt = mech.joints[joint]
+        label = f"{lk.name}.theta@{joint}"
+        drive = mech.driven(lk.name)
+        if drive is not None and drive.ground_joint == joint:
+            if drive.torsional_stiffness is not None:
+                q = self._new_q(label)
+                return self._add_rot(RotDof("free", label, (q,), lk.name))
+            return self._add_rot(RotDof("fixed", label, (), lk.name))
+        clamped = lk.ends[k] == "clamp" or jt.welded
+        if not clamped:
+            q = self._new_q(label)
+            return self._add_rot(RotDof("free", label, (q,), lk.name))
+        if jt.kind == "ground":
+            return self._add_rot(RotDof("fixed", label, (), lk.name, None, offset=True))
+        rigid_here = [m for m in mech.members_at(joint) if m in self.member_rot]
+        if rigid_here:
+            groups = {self.member_rot[m] for m in rigid_here}
+            if len(groups) > 1:
+                raise InputError(f"link '{lk.name}' is clamped at joint '{joint}' where several rigid "
+                                 "members pivot; weld the joint or pin the link")
+            phi = self.member_rot[rigid_here[0]]
+            master = rigid_here[0]
+            if phi < 0:
+                return self._add_rot(RotDof("fixed", label, (), lk.name, master, offset=True))
+            return self._add_rot(RotDof("tied", label, self.rots[phi].cols, lk.name, master, offset=True))
+        if joint not in clamp_groups:
+            q = self._new_q(f"{joint}.theta")
+            rid = self._add_rot(RotDof("free", label, (q,), lk.name))
+            clamp_groups[joint] = (rid, lk.name)
+            return rid
+        rid0, master = clamp_groups[joint]
+        return self._add_rot(RotDof("tied", label, self.rots[rid0].cols, lk.name, master, offset=True))
+
+    def _build_beams(self):
+        mech = self.mech
+        clamp_groups: dict = {}
+        rows = {k: [] for k in ("link", "L", "EA", "EI", "rhoA", "GAs", "s1", "lumped", "timo")}
+        ids = []
+        first, count = {}, {}
+        names = []
+        for li, lk in enumerate(mech.flexible_links):
+            names.append(lk.name)
+            ne = lk.elements
+            le = lk.length / ne
+            mat, sec = lk.material, lk.section
+            first[lk.name] = len(rows["L"])
+            count[lk.name] = ne
+            ra = self._end_rotation(lk, lk.a, 0, clamp_groups)
+            self.end_rot[(lk.name, lk.a)] = ra
+            node_pts = [self.joint_point[lk.a]]
+            node_rots = [ra]
+            pa = np.array(mech.joints[lk.a].at)
+            e1 = (np.array(mech.joints[lk.b].at) - pa) / lk.length
+            for i in range(1, ne):
+                qx = self._new_q(f"{lk.name}.n{i}.ux")
+                qy = self._new_q(f"{lk.name}.n{i}.uy")
+                qt = self._new_q(f"{lk.name}.n{i}.theta")
+                node_pts.append(self._add_point(PointDof("free", f"{lk.name}.n{i}", (qx, qy),
+                                                         loc=("member", lk.name, lk.a, i * le * e1))))
+                node_rots.append(self._add_rot(RotDof("free", f"{lk.name}.n{i}.theta", (qt,), lk.name)))
+            rb = self._end_rotation(lk, lk.b, 1, clamp_groups)
+            self.end_rot[(lk.name, lk.b)] = rb
+            node_pts.append(self.joint_point[lk.b])
+            node_rots.append(rb)
+            for i in range(ne):
+                ids.append((node_pts[i], node_rots[i], node_pts[i + 1], node_rots[i + 1]))
+                rows["link"].append(li)
+                rows["L"].append(le)
+                rows["EA"].append(mat.E * sec.A)
+                rows["EI"].append(mat.E * sec.I)
+                rows["rhoA"].append(mat.rho * sec.A)
+                rows["GAs"].append(sec.kappa * mat.G * sec.A)
+                rows["s1"].append(i * le)
+                rows["lumped"].append(lk.mass_matrix == "lumped")
+                rows["timo"].append(lk.timoshenko)
+        arr = {k: np.asarray(v, dtype=float) for k, v in rows.items()}
+        self.beam = BeamData(arr["link"].astype(int), tuple(names), arr["L"], arr["EA"], arr["EI"],
+                             arr["rhoA"], arr["GAs"], arr["s1"], arr["lumped"].astype(bool),
+                             arr["timo"].astype(bool), first, count)
+        self._beam_ids = np.asarray(ids, dtype=int).reshape(-1, 4)
+
+    def rotation_at(self, joint: str, member: str | None) -> int:
+        """Rotation entity id of ``member`` at ``joint`` (-1: the frame or fixed)."""
+        if member is None:
+            return -1
+        if member in self.member_rot:
+            return self.member_rot[member]
+        if (member, joint) in self.end_rot:
+            return self.end_rot[(member, joint)]
+        raise InputError(f"member '{member}' is not attached at joint '{joint}'")
+
+    def _unique_rotation(self, joint: str) -> int:
+        rids = set()
+        for m in self.mech.members_at(joint):
+            r = self.rotation_at(joint, m)
+            rids.add(r if r < 0 or self.rots[r].cols else -1)
+        cols = {self.rots[r].cols for r in rids if r >= 0}
+        if len(cols) > 1:
+            raise InputError(f"point mass with rotary inertia J at joint '{joint}': the members meeting "
+                             "there rotate independently; weld the joint or put J on one member")
+        return next((r for r in rids if r >= 0), -1)
+
+    def _build_groups(self):
+        mech = self.mech
+        groups = {}
+        groups["beam"] = Group("beam", ("P", "R", "P", "R"), self._beam_ids)
+        rig = [(self.member_com[m], self.member_rot[m]) for m in self.member_com
+               if (mech.links[m].mass if m in mech.links else mech.bodies[m].mass) > 0
+               or (mech.links[m].J if m in mech.links else mech.bodies[m].J) > 0]
+        rig_names = [m for m in self.member_com
+                     if (mech.links[m].mass if m in mech.links else mech.bodies[m].mass) > 0
+                     or (mech.links[m].J if m in mech.links else mech.bodies[m].J) > 0]
+        groups["rigid"] = Group("rigid", ("P", "R"), np.asarray(rig, int).reshape(-1, 2),
+                                {"members": rig_names})
+        pm = []
+        for p in mech.point_masses:
+            rid = self._unique_rotation(p.joint) if p.J > 0 else -1
+            pm.append((self.joint_point[p.joint], rid))
+        groups["pmass"] = Group("pmass", ("P", "R"), np.asarray(pm, int).reshape(-1, 2),
+                                {"items": list(mech.point_masses)})
+        spr = [(self.joint_point[s.a], self.joint_point[s.b] if s.b is not None else -1)
+               for s in mech.springs.values()]
+        groups["spring"] = Group("spring", ("P", "P"), np.asarray(spr, int).reshape(-1, 2),
+                                 {"items": list(mech.springs.values())})
+        ts, titems = [], []
+        for t in mech.torsional_springs.values():
+            ts.append((self.rotation_at(t.joint, t.member), self.rotation_at(t.joint, t.other)))
+            titems.append(("spring", t))
+        for d in mech.drives:
+            if d.torsional_stiffness is not None:
+                ts.append((self.rotation_at(d.ground_joint, d.member), -1))
+                titems.append(("drive", d))
+        groups["tspring"] = Group("tspring", ("R", "R"), np.asarray(ts, int).reshape(-1, 2),
+                                  {"items": titems})
+        loads = [(self.joint_point[ld.joint],) for ld in mech.loads.values()]
+        loads += [(self.joint_point[f.joint],) for f in mech.frictions.values()]
+        groups["load"] = Group("load", ("P",), np.asarray(loads, int).reshape(-1, 1),
+                               {"items": list(mech.loads.values()) + list(mech.frictions.values())})
+        self.groups = {k: g for k, g in groups.items()}
+
+    # ------------------------------------------------------------ evaluation
+    def _loc_motion(self, loc, motion: Motion):
+        if loc[0] == "joint":
+            j = motion.joint_names.index(loc[1])
+            return motion.r[:, j], motion.v[:, j], motion.a[:, j]
+        _k, member, origin, offset = loc
+        return motion.point(member, origin, offset)
+
+    def point_forms(self, motion: Motion):
+        """Affine forms of all point entities over the motion's time nodes.
+
+        Returns
+        -------
+        list of (cols, C, C1, C2, moving)
+            ``C`` (nt or 1, 2, k) and its time derivatives (None if constant).
+        """
+        forms: list = [None] * len(self.points)
+        locs: dict = {}
+
+        def loc_state(pid):
+            if pid not in locs:
+                locs[pid] = self._loc_motion(self.points[pid].loc, motion)
+            return locs[pid]
+
+        def form(pid):
+            if forms[pid] is not None:
+                return forms[pid]
+            pd = self.points[pid]
+            if pd.kind == "fixed":
+                out = ((), np.zeros((1, 2, 0)), None, None, False)
+            elif pd.kind == "free":
+                out = (pd.cols, np.eye(2)[None], None, None, False)
+            elif pd.kind == "slider":
+                out = (pd.cols, np.asarray(pd.axis, float).reshape(1, 2, 1), None, None, False)
+            else:
+                pc, pC, pC1, pC2, pmov = form(pd.parent)
+                if pd.phi < 0:
+                    out = (pc, pC, pC1, pC2, pmov)
+                else:
+                    r, v, a = loc_state(pid)
+                    rr, rv, ra = loc_state(pd.parent) if self.points[pd.parent].loc else (0, 0, 0)
+                    rho, rho1, rho2 = r - rr, v - rv, a - ra
+                    nt = rho.shape[0]
+                    col = (rho @ _S.T)[..., None]
+                    col1 = (rho1 @ _S.T)[..., None]
+                    col2 = (rho2 @ _S.T)[..., None]
+                    bC = np.broadcast_to(pC, (nt,) + pC.shape[1:])
+                    z = np.zeros((nt, 2, pC.shape[2]))
+                    bC1 = z if pC1 is None else np.broadcast_to(pC1, z.shape)
+                    bC2 = z if pC2 is None else np.broadcast_to(pC2, z.shape)
+                    cols = tuple(pc) + tuple(self.rots[pd.phi].cols)
+                    out = (cols, np.concatenate([bC, col], -1), np.concatenate([bC1, col1], -1),
+                           np.concatenate([bC2, col2], -1), True)
+            forms[pid] = out
+            return out
+
+        for pid in range(len(self.points)):
+            form(pid)
+        return forms
+
+    def rot_offsets(self, motion: Motion):
+        """Prescribed rotation offsets ``(p, p1, p2)``, each (nt, n_rots)."""
+        nt = motion.n
+        p = np.zeros((nt, len(self.rots)))
+        p1 = np.zeros_like(p)
+        p2 = np.zeros_like(p)
+        for rid, rd in enumerate(self.rots):
+            if not rd.offset:
+                continue
+            i = motion.member_names.index(rd.member)
+            val = -(motion.theta[:, i] - motion.theta_ref[i])
+            d1 = -motion.omega[:, i]
+            d2 = -motion.alpha[:, i]
+            if rd.master is not None:
+                k = motion.member_names.index(rd.master)
+                val = val + motion.theta[:, k] - motion.theta_ref[k]
+                d1 = d1 + motion.omega[:, k]
+                d2 = d2 + motion.alpha[:, k]
+            p[:, rid], p1[:, rid], p2[:, rid] = val, d1, d2
+        return p, p1, p2
+
+    def _static_layout(self, gname: str):
+        """Column map, constant part of E and the moving slots of a group."""
+        if gname in self._static_cache:
+            return self._static_cache[gname]
+        g = self.groups[gname]
+        forms = self._form_cols()
+        n_el = g.n
+        per_el = []
+        for e in range(n_el):
+            cols = []
+            for slot, kind in enumerate(g.layout):
+                eid = g.ids[e, slot]
+                if eid < 0:
+                    continue
+                cols.extend(forms[kind][eid])
+            per_el.append(cols)
+        m = max([len(c) for c in per_el], default=0)
+        m = max(m, 1)
+        colarr = np.full((n_el, m), len(self.dof_labels), dtype=int)
+        E0 = np.zeros((n_el, g.d, m))
+        moving = []   # (element, row0, col0, point id, k)
+        offsets = []  # (element, row, rot id)
+        for e in range(n_el):
+            row = 0
+            c = 0
+            for slot, kind in enumerate(g.layout):
+                eid = g.ids[e, slot]
+                width = 2 if kind == "P" else 1
+                if eid >= 0:
+                    ecols = forms[kind][eid]
+                    k = len(ecols)
+                    colarr[e, c:c + k] = ecols
+                    if kind == "P":
+                        if self._point_moving(eid):
+                            moving.append((e, row, c, eid, k))
+                        else:
+                            E0[e, row:row + 2, c:c + k] = self._const_C(eid)
+                    else:
+                        if k:
+                            E0[e, row, c] = 1.0
+                        if self.rots[eid].offset:
+                            offsets.append((e, row, eid))
+                    c += k
+                row += width
+        out = (colarr, E0, moving, offsets)
+        self._static_cache[gname] = out
+        return out
+
+    def _form_cols(self):
+        if not hasattr(self, "_cols_cache"):
+            pcols = []
+            for pid in range(len(self.points)):
+                pcols.append(self._point_cols(pid))
+            rcols = [rd.cols for rd in self.rots]
+            self._cols_cache = {"P": pcols, "R": rcols}
+        return self._cols_cache
+
+    def _point_cols(self, pid):
+        pd = self.points[pid]
+        if pd.kind in ("fixed",):
+            return ()
+        if pd.kind in ("free", "slider"):
+            return pd.cols
+        base = self._point_cols(pd.parent)
+        return tuple(base) + (tuple(self.rots[pd.phi].cols) if pd.phi >= 0 else ())
+
+    def _point_moving(self, pid):
+        pd = self.points[pid]
+        if pd.kind != "body":
+            return False
+        return pd.phi >= 0 or self._point_moving(pd.parent)
+
+    def _const_C(self, pid):
+        pd = self.points[pid]
+        while pd.kind == "body":
+            pd = self.points[pd.parent]
+        if pd.kind == "free":
+            return np.eye(2)
+        if pd.kind == "slider":
+            return np.asarray(pd.axis, float).reshape(2, 1)
+        return np.zeros((2, 0))
+
+    def has_moving_maps(self) -> bool:
+        """True if some constraint map depends on time (rotating rigid members)."""
+        return any(self._point_moving(i) for i in range(len(self.points)))
+
+    def has_offsets(self) -> bool:
+        """True if some rotation carries a prescribed offset."""
+        return any(rd.offset for rd in self.rots)
+
+    def group_map(self, gname: str, motion: Motion, forms=None, offsets=None) -> GroupMap:
+        """Constraint map of a group over the motion's time nodes."""
+        colarr, E0, moving, offs = self._static_layout(gname)
+        nt = motion.n
+        n_el, d, m = E0.shape
+        if moving:
+            if forms is None:
+                forms = self.point_forms(motion)
+            E = np.broadcast_to(E0, (nt, n_el, d, m)).copy()
+            E1 = np.zeros_like(E)
+            E2 = np.zeros_like(E)
+            for e, row, c, pid, k in moving:
+                _cols, C, C1, C2, _mv = forms[pid]
+                E[:, e, row:row + 2, c:c + k] = C
+                E1[:, e, row:row + 2, c:c + k] = C1
+                E2[:, e, row:row + 2, c:c + k] = C2
+        else:
+            E = E0[None]
+            E1 = E2 = None
+        p = p1 = p2 = None
+        if offs:
+            if offsets is None:
+                offsets = self.rot_offsets(motion)
+            po, po1, po2 = offsets
+            p = np.zeros((nt, n_el, d))
+            p1 = np.zeros_like(p)
+            p2 = np.zeros_like(p)
+            for e, row, rid in offs:
+                p[:, e, row] = po[:, rid]
+                p1[:, e, row] = po1[:, rid]
+                p2[:, e, row] = po2[:, rid]
+        return GroupMap(colarr, E, E1, E2, p, p1, p2)
+
+    # --------------------------------------------------------------- scatter
+    def _operators(self, gname: str):
+        if gname in self._scatter_cache:
+            return self._scatter_cache[gname]
+        colarr = self._static_layout(gname)[0]
+        N1 = self.n_dof + 1
+        n_el, m = colarr.shape
+        rows = (colarr[:, :, None] * N1 + colarr[:, None, :]).reshape(-1)
+        Smat = sp.coo_matrix((np.ones(rows.size), (np.arange(rows.size), rows)),
+                             shape=(rows.size, N1 * N1)).tocsr()
+        vrows = colarr.reshape(-1)
+        Svec = sp.coo_matrix((np.ones(vrows.size), (np.arange(vrows.size), vrows)),
+                             shape=(vrows.size, N1)).tocsr()
+        self._scatter_cache[gname] = (Smat, Svec)
+        return Smat, Svec
+
+    def scatter_matrix(self, gname: str, data: np.ndarray) -> np.ndarray:
+        """Scatter element matrices ``(nt, n_el, m, m)`` to dense ``(nt, N, N)``."""
+        Smat, _ = self._operators(gname)
+        nt = data.shape[0]
+        N1 = self.n_dof + 1
+        flat = np.asarray(Smat.T @ data.reshape(nt, -1).T).T
+        return flat.reshape(nt, N1, N1)[:, :-1, :-1]
+
+    def scatter_vector(self, gname: str, data: np.ndarray) -> np.ndarray:
+        """Scatter element vectors ``(nt, n_el, m)`` to dense ``(nt, N)``."""
+        _, Svec = self._operators(gname)
+        nt = data.shape[0]
+        flat = np.asarray(Svec.T @ data.reshape(nt, -1).T).T
+        return flat[:, :-1]
+
+    def scatter_sparse(self, gname: str, data: np.ndarray) -> sp.csr_matrix:
+        """Scatter element matrices of one time node ``(n_el, m, m)`` to CSR ``(N, N)``."""
+        colarr = self._static_layout(gname)[0]
+        n_el, m = colarr.shape
+        r = np.repeat(colarr, m, axis=1).reshape(-1)
+        c = np.tile(colarr, (1, m)).reshape(-1)
+        keep = (r < self.n_dof) & (c < self.n_dof)
+        return sp.coo_matrix((data.reshape(-1)[keep], (r[keep], c[keep])),
+                             shape=(self.n_dof, self.n_dof)).tocsr()
+
+    # ---------------------------------------------------------------- labels
+    def dof_index(self, label: str) -> int:
+        """Index of the DOF with ``label`` (see :attr:`dof_labels`)."""
+        try:
+            return self.dof_labels.index(label)
+        except ValueError:
+            raise InputError(f"unknown DOF label '{label}'") from None
+
+    def link_elements(self, link: str) -> slice:
+        """Slice of the beam elements of a flexible link."""
+        if link not in self.beam.first:
+            kind = "rigid" if link in self.mech.links else "unknown"
+            raise InputError(f"link '{link}' is {kind}: it has no beam elements "
+                             f"(flexible links: {', '.join(self.beam.links)})")
+        i0 = self.beam.first[link]
+        return slice(i0, i0 + self.beam.count[link])

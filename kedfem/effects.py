@@ -1,0 +1,853 @@
+"""Physical effects a scene can ask for, and the assembler that applies them.
+
+The structure is always assembled: beam mass and stiffness, rigid-member
+and point masses, the linear stiffness of declared springs and drive
+shafts. Each *effect* adds terms on top (DESIGN.md section 2); an effect not
+named is never evaluated:
+
+============================ ================================================ ===============
+effect                       adds                                             state-dependent
+============================ ================================================ ===============
+``inertia``                  rigid-body inertial loads ``-M r0''``            no
+``coupling``                 Coriolis ``2 w m_s``, tangential ``a m_s``,      no
+                             centripetal ``-w^2 m_t``, and the terms of the
+                             time derivatives of the frame transformations
+``axial_stiffening``         geometric stiffness of the kinetostatic forces   no
+                             (``k_G(N)`` of links, ``sum F.rho`` of rigid
+                             members)
+``geometric_nonlinearity``   von Karman tangent stiffness of the elastic      yes
+                             axial forces and large deflections
+``gravity``                  weight loads (``mechanism.gravity``)             no
+``springs``                  spring forces of the rigid-body motion and       if cubic
+                             preload; cubic spring laws
+``loads``                    declared constant loads and friction forces      if friction
+                                                                              follows the
+                                                                              total velocity
+============================ ================================================ ===============
+
+All terms are computed batched over time nodes and elements and pushed
+through the constraint maps of :mod:`kedfem.assembly`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from . import elements as el
+from .assembly import FEModel
+from .errors import InputError
+from .kinematics import Motion
+from .kinetostatics import JointForces, kinetostatics, link_axial_force, member_centre
+from .mechanism import Load
+
+__all__ = ["EFFECTS", "Effect", "check_effects", "Rayleigh", "ModalDamping", "Assembler",
+           "slice_motion", "SystemTerms"]
+
+log = logging.getLogger(__name__)
+
+_S = np.array([[0.0, -1.0], [1.0, 0.0]])
+_SHAT = np.zeros((6, 6))
+_SHAT[0:2, 0:2] = _S
+_SHAT[3:5, 3:5] = _S
+
+
+# --------------------------------------------------------------------- damping
+@dataclass(frozen=True)
+class Rayleigh:
+    """Rayleigh damping ``C = alpha M + beta K`` (K: structural stiffness).
+
+    Parameters
+    ----------
+    alpha : float
+        Mass-proportional coefficient [1/s].
+    beta : float
+        Stiffness-proportional coefficient [s].
+    """
+
+    alpha: float = 0.0
+    beta: float = 0.0
+
+    def __post_init__(self):
+        for name in ("alpha", "beta"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) \
+                    or not np.isfinite(v) or v < 0:
+                raise InputError(f"Rayleigh: {name} must be a finite number >= 0, got {v!r}")
+
+
+@dataclass(frozen=True)
+class ModalDamping:
+    """Modal damping: every elastic mode of ``(K, M)`` at each time node gets ratio ``zeta``.
+
+    ``C = M Phi diag(2 zeta omega) Phi^T M`` with mass-normalised modes of the
+    structural stiffness; zero-frequency (rigid-body) modes get no damping.
+    """
+
+    zeta: float = 0.02
+
+    def __post_init__(self):
+        v = self.zeta
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) \
+                or not np.isfinite(v) or v < 0 or v >= 1:
+            raise InputError(f"ModalDamping: zeta must be a finite number in [0, 1), got {v!r}")
+
+
+# --------------------------------------------------------------------- registry
+@dataclass(frozen=True)
+class Effect:
+    """Description of an effect in the registry."""
+
+    name: str
+    adds: str
+
+    def state_dependent(self, mech) -> bool:
+        """True if this effect makes the equations depend on the elastic state."""
+        if self.name == "geometric_nonlinearity":
+            return bool(mech.flexible_links)
+        if self.name == "springs":
+            return any(s.nonlinear for s in mech.springs.values())
+        if self.name == "loads":
+            return any(f.follows == "total" for f in mech.frictions.values())
+        return False
+
+
+EFFECTS: dict[str, Effect] = {e.name: e for e in (
+    Effect("inertia", "rigid-body inertial loads -M r0''"),
+    Effect("coupling", "Coriolis, tangential and centripetal rigid-elastic coupling terms"),
+    Effect("axial_stiffening", "geometric stiffness of the kinetostatic (rigid-body) forces"),
+    Effect("geometric_nonlinearity", "tangent stiffness of elastic axial forces and large deflection"),
+    Effect("gravity", "weight loads"),
+    Effect("springs", "spring forces of the rigid-body motion and preload; cubic spring laws"),
+    Effect("loads", "declared external loads and friction"),
+)}
+
+
+def check_effects(effects) -> tuple[str, ...]:
+    """Validate effect names; return them as a tuple in registry order.
+
+    Raises
+    ------
+    InputError
+        An unknown name (the message lists the known ones).
+    """
+    if isinstance(effects, str):
+        effects = (effects,)
+    try:
+        names = list(effects)
+    except TypeError:
+        raise InputError(f"effects must be a sequence of names, got {effects!r}") from None
+    for e in names:
+        if not isinstance(e, str) or e not in EFFECTS:
+            raise InputError(f"unknown effect {e!r}; known effects: {', '.join(EFFECTS)}")
+    if len(set(names)) != len(names):
+        raise InputError(f"effects repeat: {names}")
+    return tuple(n for n in EFFECTS if n in names)
+
+
+def slice_motion(motion: Motion, idx) -> Motion:
+    """The motion restricted to time nodes ``idx``."""
+    idx = np.asarray(idx)
+    fields = {}
+    for f in ("t", "crank_angle", "r", "v", "a", "theta", "omega", "alpha", "s", "sd", "sdd"):
+        fields[f] = getattr(motion, f)[idx]
+    return dataclasses.replace(motion, **fields)
+
+
+@dataclass
+class SystemTerms:
+    """Assembled q-space terms at ``nt`` time nodes.
+
+    ``M, C, K``: (nt, N, N); ``Q``: (nt, N).
+    """
+
+    M: np.ndarray
+    C: np.ndarray
+    K: np.ndarray
+    Q: np.ndarray
+
+
+class _Acc:
+    """Per-group x-space accumulator of M, C, K, Q for one chunk."""
+
+    def __init__(self):
+        self.data: dict[str, dict[str, np.ndarray]] = {}
+
+    def add(self, g, key, val):
+        d = self.data.setdefault(g, {})
+        if key in d:
+            a = d[key]
+            if a.shape != val.shape:
+                shape = np.broadcast_shapes(a.shape, val.shape)
+                a = np.broadcast_to(a, shape).copy()
+            d[key] = a + val
+        else:
+            d[key] = np.array(val, dtype=float, copy=True)
+
+    def get(self, g, key):
+        return self.data.get(g, {}).get(key)
+
+
+class Assembler:
+    """Assemble the effects of a scene at any set of time nodes.
+
+    Parameters
+    ----------
+    model : FEModel
+        DOF map and element groups.
+    motion : Motion
+        Rigid-body motion over the cycle (all time nodes).
+    effects : sequence of str
+        Effects to apply (see :data:`EFFECTS`).
+    damping : Rayleigh or ModalDamping or None
+        Damping model.
+    frame : bool
+        Co-moving-frame formulation for frequency analysis: each link in its
+        own rotating frame (Coriolis ``2 w m_s``, ``a m_s``, ``-w^2 m_t``),
+        rigid members in translating frames; the terms of the time
+        derivatives of the frame transformations are left out. ``False``
+        (default) is the inertial-frame formulation the response is solved in.
+    """
+
+    def __init__(self, model: FEModel, motion: Motion, effects=(), damping=None, frame=False):
+        self.model = model
+        self.mech = model.mech
+        self.motion = motion
+        self.effects = check_effects(effects)
+        if damping is not None and not isinstance(damping, (Rayleigh, ModalDamping)):
+            raise InputError(f"damping must be kf.Rayleigh, kf.ModalDamping or None, got {damping!r}")
+        self.damping = damping
+        self.frame = bool(frame)
+        self.has = set(self.effects)
+        self._forces: JointForces | None = None
+        self._axial: np.ndarray | None = None
+        b = model.beam
+        self._beam_member = np.array([motion.member_names.index(b.links[i]) for i in b.link], dtype=int)
+        self._beam_joint_a = np.array([motion.joint_names.index(self.mech.links[b.links[i]].a)
+                                       for i in b.link], dtype=int)
+        if "axial_stiffening" in self.has and "geometric_nonlinearity" in self.has and b.L.size:
+            log.info("geometric_nonlinearity carries the axial forces of the links: the links' k_G of "
+                     "axial_stiffening is not added twice (rigid members keep theirs)")
+        self._k_local = self._beam_stiffness()
+        self._m_local = self._beam_mass()
+        self._coupling_mats = self._beam_coupling()
+
+    # ------------------------------------------------------------- properties
+    @property
+    def state_dependent(self) -> bool:
+        """True if some chosen effect depends on the elastic state (needs iteration)."""
+        return any(EFFECTS[e].state_dependent(self.mech) for e in self.effects)
+
+    def _beam_stiffness(self):
+        b = self.model.beam
+        if not b.L.size:
+            return np.zeros((0, 6, 6))
+        k = el.frame_stiffness(b.L, b.EA, b.EI)
+        if b.timoshenko.any():
+            kt = el.timoshenko_stiffness(b.L, b.EA, b.EI, b.GAs)
+            k[b.timoshenko] = kt[b.timoshenko]
+        return k
+
+    def _beam_mass(self):
+        b = self.model.beam
+        if not b.L.size:
+            return np.zeros((0, 6, 6))
+        m = el.consistent_mass(b.L, b.rhoA)
+        if b.lumped.any():
+            ml = el.lumped_mass(b.L, b.rhoA)
+            m[b.lumped] = ml[b.lumped]
+        return m
+
+    def _beam_coupling(self):
+        """Translational mass m_t and skew coupling m_s of the beam elements.
+
+        Consistent elements use the Hermite/linear fields; lumped elements are
+        point masses at the nodes, for which ``m_s = m_t S_hat``.
+        """
+        b = self.model.beam
+        if not b.L.size:
+            return np.zeros((0, 6, 6)), np.zeros((0, 6, 6))
+        mt = el.consistent_mass(b.L, b.rhoA)
+        ms = el.coupling_skew(b.L, b.rhoA)
+        if b.lumped.any():
+            ml = el.lumped_mass(b.L, b.rhoA)
+            ml[:, [2, 5], [2, 5]] = 0.0
+            mt[b.lumped] = ml[b.lumped]
+            ms[b.lumped] = ml[b.lumped] @ _SHAT
+        return mt, ms
+
+    # ------------------------------------------------------------ kinetostatics
+    def joint_forces(self) -> JointForces:
+        """Kinetostatic joint forces over the whole cycle (computed once)."""
+        if self._forces is None:
+            mo = self.motion
+            loads = None
+            moments = None
+            if "springs" in self.has or "loads" in self.has:
+                loads = np.zeros((mo.n, len(mo.joint_names), 2))
+                moments = np.zeros((mo.n, len(mo.member_names)))
+                if "springs" in self.has:
+                    self._spring_rigid_forces(mo, loads, moments)
+                if "loads" in self.has:
+                    self._rigid_loads(mo, loads)
+            self._forces = kinetostatics(self.mech, mo, inertia=True, gravity="gravity" in self.has,
+                                         joint_loads=loads, member_moments=moments)
+        return self._forces
+
+    def _spring_rigid_forces(self, mo, loads, moments):
+        for s in self.mech.springs.values():
+            ja = mo.joint_names.index(s.a)
+            n = np.asarray(s.axis)
+            d = (mo.r[:, ja] - np.asarray(self.mech.joints[s.a].at)) @ n
+            if s.b is not None:
+                jb = mo.joint_names.index(s.b)
+                d = d - (mo.r[:, jb] - np.asarray(self.mech.joints[s.b].at)) @ n
+            F = s.preload + s.k * d + s.k3 * d**3
+            loads[:, ja] -= F[:, None] * n
+            if s.b is not None:
+                loads[:, jb] += F[:, None] * n
+        for t in self.mech.torsional_springs.values():
+            i = mo.member_names.index(t.member)
+            rel = mo.theta[:, i] - mo.theta_ref[i]
+            if t.other is not None:
+                k = mo.member_names.index(t.other)
+                rel = rel - (mo.theta[:, k] - mo.theta_ref[k])
+            Mt = t.preload + t.k * rel
+            moments[:, i] -= Mt
+            if t.other is not None:
+                moments[:, k] += Mt
+
+    def _rigid_loads(self, mo, loads):
+        for ld in self.mech.loads.values():
+            loads[:, mo.joint_names.index(ld.joint)] += np.asarray(ld.force)
+        for f in self.mech.frictions.values():
+            j = mo.joint_names.index(f.joint)
+            n = np.asarray(f.axis)
+            vrel = mo.v[:, j] @ n - f.reference_speed
+            loads[:, j] -= (f.force * np.tanh(vrel / f.smoothing))[:, None] * n
+
+    def beam_axial_kinetostatic(self) -> np.ndarray:
+        """Mean kinetostatic axial force per beam element, shape (n, n_el) [N]."""
+        if self._axial is None:
+            b = self.model.beam
+            forces = self.joint_forces()
+            out = np.zeros((self.motion.n, b.L.size))
+            for name in b.links:
+                sl = self.model.link_elements(name)
+                s1 = b.s1[sl]
+                out[:, sl] = link_axial_force(self.mech, self.motion, forces, name, s1, s1 + b.L[sl],
+                                              gravity="gravity" in self.has)
+            self._axial = out
+        return self._axial
+
+    # ------------------------------------------------------------ element terms
+    def _beam_kin(self, mo):
+        th = mo.theta[:, self._beam_member]
+        return (th, mo.omega[:, self._beam_member], mo.alpha[:, self._beam_member],
+                mo.a[:, self._beam_joint_a], el.rotation_blocks(th))
+
+    def _beam_terms(self, mo, idx, acc: _Acc):
+        b = self.model.beam
+        if not b.L.size:
+            return
+        th, w, al, aa, T = self._beam_kin(mo)
+        Tt = np.swapaxes(T, -1, -2)
+        acc.add("beam", "M", Tt @ self._m_local @ T)
+        acc.add("beam", "K", Tt @ self._k_local @ T)
+        acc.add("beam", "Ks", Tt @ self._k_local @ T)
+        if "coupling" in self.has:
+            mt, ms = self._coupling_mats
+            w4 = w[..., None, None]
+            a4 = al[..., None, None]
+            if self.frame:
+                C = 2.0 * w4 * ms
+                K = a4 * ms - w4**2 * mt
+            else:
+                mtS = mt @ _SHAT
+                C = 2.0 * w4 * (ms - mtS)
+                K = a4 * (ms - mtS) + w4**2 * (mtS @ _SHAT - 2.0 * ms @ _SHAT - mt)
+            acc.add("beam", "C", Tt @ C @ T)
+            acc.add("beam", "K", Tt @ K @ T)
+        if "axial_stiffening" in self.has and "geometric_nonlinearity" not in self.has:
+            N = self.beam_axial_kinetostatic()[idx]
+            acc.add("beam", "K", Tt @ el.geometric_stiffness(b.L, N) @ T)
+        R_T = np.swapaxes(T[..., 0:2, 0:2], -1, -2)  # R(theta)
+        if "inertia" in self.has:
+            c = np.stack([-(w**2), al], axis=-1)  # (nt, n_el, 2)
+            a_loc = np.einsum("tnji,tnj->tni", R_T, aa)  # R^T a_a
+            p0 = -b.rhoA[:, None] * (a_loc + b.s1[:, None] * c)
+            p1 = -b.rhoA[:, None] * c
+            f = el.linear_load(b.L, p0, p1)
+            acc.add("beam", "Q", np.einsum("tnji,tnj->tni", T, f))
+        if "gravity" in self.has:
+            g = np.asarray(self.mech.gravity)
+            g_loc = np.einsum("tnji,j->tni", R_T, g)
+            f = el.linear_load(b.L, b.rhoA[:, None] * g_loc, np.zeros_like(g_loc))
+            acc.add("beam", "Q", np.einsum("tnji,tnj->tni", T, f))
+
+    def _rigid_terms(self, mo, acc: _Acc):
+        g = self.model.groups["rigid"]
+        if not g.n:
+            return
+        names = g.meta["members"]
+        mass = np.array([self.mech.links[m].mass if m in self.mech.links else self.mech.bodies[m].mass
+                         for m in names])
+        J = np.array([self.mech.links[m].J if m in self.mech.links else self.mech.bodies[m].J
+                      for m in names])
+        M = np.zeros((1, g.n, 3, 3))
+        M[0, :, 0, 0] = M[0, :, 1, 1] = mass
+        M[0, :, 2, 2] = J
+        acc.add("rigid", "M", M)
+        if "inertia" in self.has or "gravity" in self.has:
+            Q = np.zeros((mo.n, g.n, 3))
+            for k, m in enumerate(names):
+                if "inertia" in self.has:
+                    _r, _v, ac = member_centre(self.mech, mo, m)
+                    Q[:, k, 0:2] -= mass[k] * ac
+                    Q[:, k, 2] -= J[k] * mo.alpha[:, mo.member_names.index(m)]
+                if "gravity" in self.has:
+                    Q[:, k, 0:2] += mass[k] * np.asarray(self.mech.gravity)
+            acc.add("rigid", "Q", Q)
+
+    def _pmass_terms(self, mo, acc: _Acc):
+        g = self.model.groups["pmass"]
+        if not g.n:
+            return
+        items = g.meta["items"]
+        M = np.zeros((1, g.n, 3, 3))
+        for k, p in enumerate(items):
+            M[0, k, 0, 0] = M[0, k, 1, 1] = p.mass
+            M[0, k, 2, 2] = p.J if g.ids[k, 1] >= 0 else 0.0
+        acc.add("pmass", "M", M)
+        if "inertia" in self.has or "gravity" in self.has:
+            Q = np.zeros((mo.n, g.n, 3))
+            for k, p in enumerate(items):
+                j = mo.joint_names.index(p.joint)
+                if "inertia" in self.has:
+                    Q[:, k, 0:2] -= p.mass * mo.a[:, j]
+                    rid = g.ids[k, 1]
+                    if rid >= 0 and p.J > 0:
+                        mem = self.model.rots[rid].member
+                        Q[:, k, 2] -= p.J * mo.alpha[:, mo.member_names.index(mem)]
+                if "gravity" in self.has:
+                    Q[:, k, 0:2] += p.mass * np.asarray(self.mech.gravity)
+            acc.add("pmass", "Q", Q)
+
+    def _spring_B(self):
+        g = self.model.groups["spring"]
+        B = np.zeros((g.n, 4))
+        for k, s in enumerate(g.meta["items"]):
+            B[k, 0:2] = s.axis
+            B[k, 2:4] = -np.asarray(s.axis)
+        return B
+
+    def _spring_rigid_extension(self, mo):
+        g = self.model.groups["spring"]
+        d = np.zeros((mo.n, g.n))
+        for k, s in enumerate(g.meta["items"]):
+            n = np.asarray(s.axis)
+            ja = mo.joint_names.index(s.a)
+            d[:, k] = (mo.r[:, ja] - np.asarray(self.mech.joints[s.a].at)) @ n
+            if s.b is not None:
+                jb = mo.joint_names.index(s.b)
+                d[:, k] -= (mo.r[:, jb] - np.asarray(self.mech.joints[s.b].at)) @ n
+        return d
+
+    def _spring_terms(self, mo, acc: _Acc):
+        g = self.model.groups["spring"]
+        if g.n:
+            items = g.meta["items"]
+            B = self._spring_B()
+            k = np.array([s.k for s in items])
+            BB = B[:, :, None] * B[:, None, :]
+            acc.add("spring", "K", (k[:, None, None] * BB)[None])
+            acc.add("spring", "Ks", (k[:, None, None] * BB)[None])
+            if "springs" in self.has:
+                d = self._spring_rigid_extension(mo)
+                pre = np.array([s.preload for s in items])
+                k3 = np.array([s.k3 for s in items])
+                F = pre + k * d + k3 * d**3
+                acc.add("spring", "Q", -F[..., None] * B)
+        g = self.model.groups["tspring"]
+        if g.n:
+            items = g.meta["items"]
+            kt = np.array([it[1].k if it[0] == "spring" else it[1].torsional_stiffness for it in items])
+            Kt = kt[:, None, None] * np.array([[1.0, -1.0], [-1.0, 1.0]])
+            acc.add("tspring", "K", Kt[None])
+            acc.add("tspring", "Ks", Kt[None])
+            if "springs" in self.has:
+                Q = np.zeros((mo.n, g.n, 2))
+                for k, (kind, t) in enumerate(items):
+                    if kind != "spring":
+                        continue
+                    i = mo.member_names.index(t.member)
+                    rel = mo.theta[:, i] - mo.theta_ref[i]
+                    if t.other is not None:
+                        o = mo.member_names.index(t.other)
+                        rel = rel - (mo.theta[:, o] - mo.theta_ref[o])
+                    Mt = t.preload + t.k * rel
+                    Q[:, k, 0] = -Mt
+                    Q[:, k, 1] = Mt
+                acc.add("tspring", "Q", Q)
+
+    def _load_terms(self, mo, acc: _Acc):
+        g = self.model.groups["load"]
+        if not g.n or "loads" not in self.has:
+            return
+        Q = np.zeros((mo.n, g.n, 2))
+        for k, it in enumerate(g.meta["items"]):
+            if isinstance(it, Load):
+                Q[:, k] = it.force
+            elif it.follows == "rigid":
+                j = mo.joint_names.index(it.joint)
+                n = np.asarray(it.axis)
+                vrel = mo.v[:, j] @ n - it.reference_speed
+                Q[:, k] = -(it.force * np.tanh(vrel / it.smoothing))[:, None] * n
+        acc.add("load", "Q", Q)
+
+    # ----------------------------------------------------------- rigid geometry
+    def _rigid_geometric(self, mo, idx):
+        """q-space geometric stiffness sum F.rho of rigid member groups, (nt, N, N)."""
+        N = self.model.n_dof
+        out = np.zeros((mo.n, N, N))
+        forces = self.joint_forces()
+        for grp in self.model.rigid_groups:
+            phi = grp["phi"]
+            if phi < 0:
+                continue
+            q = self.model.rots[phi].cols[0]
+            ref = self.model.points[grp["ref"]].loc
+            rr, _rv, _ra = self.model._loc_motion(ref, mo) if ref else (np.zeros((mo.n, 2)),) * 3
+            val = np.zeros(mo.n)
+            for m in grp["members"]:
+                for (mem, j), k in zip(forces.pairs, range(len(forces.pairs))):
+                    if mem != m:
+                        continue
+                    rj = mo.r[:, mo.joint_names.index(j)]
+                    val += np.einsum("nd,nd->n", forces.force[idx, k], rj - rr)
+                mass = self.mech.links[m].mass if m in self.mech.links else self.mech.bodies[m].mass
+                rc, _vc, ac = member_centre(self.mech, mo, m)
+                own = np.zeros((mo.n, 2))
+                if "gravity" in self.has:
+                    own += mass * np.asarray(self.mech.gravity)
+                if not self.frame:
+                    own -= mass * ac
+                val += np.einsum("nd,nd->n", own, rc - rr)
+            out[:, q, q] += val
+        return out
+
+    # -------------------------------------------------------------- transform
+    def _transform(self, gname, acc: _Acc, mo, nt):
+        model = self.model
+        M = acc.get(gname, "M")
+        C = acc.get(gname, "C")
+        K = acc.get(gname, "K")
+        Ks = acc.get(gname, "Ks")
+        Q = acc.get(gname, "Q")
+        if M is None and C is None and K is None and Q is None:
+            return None
+        gm = model.group_map(gname, mo, self._forms, self._offsets)
+        E = gm.E
+        Et = np.swapaxes(E, -1, -2)
+        out = {}
+
+        def full(x):
+            return np.broadcast_to(x, (nt,) + x.shape[1:])
+
+        if M is not None:
+            out["M"] = full(Et @ M @ E)
+        Cq = Et @ C @ E if C is not None else None
+        Kq = Et @ K @ E if K is not None else None
+        if Ks is not None:
+            out["Ks"] = full(Et @ Ks @ E)
+        transport = "coupling" in self.has and not self.frame and gm.E1 is not None
+        if transport:
+            if M is not None:
+                add = 2.0 * Et @ M @ gm.E1
+                Cq = add if Cq is None else Cq + add
+                add = Et @ M @ gm.E2
+                Kq = add if Kq is None else Kq + add
+            if C is not None:
+                add = Et @ C @ gm.E1
+                Kq = add if Kq is None else Kq + add
+        if Cq is not None:
+            out["C"] = full(Cq)
+        if Kq is not None:
+            out["K"] = full(Kq)
+        Qx = Q
+        if gm.p is not None and not self.frame:
+            extra = 0.0
+            if K is not None:
+                extra = extra + K @ gm.p[..., None]
+            if C is not None:
+                extra = extra + C @ gm.p1[..., None]
+            if M is not None and "inertia" in self.has:
+                extra = extra + M @ gm.p2[..., None]
+            if not isinstance(extra, float):
+                Qx = -extra[..., 0] if Qx is None else Qx - extra[..., 0]
+        if Qx is not None:
+            out["Q"] = full((Et @ Qx[..., None])[..., 0])
+        return out
+
+    def _group_terms(self, idx):
+        """q-space element terms of every group at time nodes ``idx``."""
+        mo = slice_motion(self.motion, idx)
+        nt = idx.size
+        acc = _Acc()
+        self._beam_terms(mo, idx, acc)
+        self._rigid_terms(mo, acc)
+        self._pmass_terms(mo, acc)
+        self._spring_terms(mo, acc)
+        self._load_terms(mo, acc)
+        self._forms = self.model.point_forms(mo) if self.model.has_moving_maps() else None
+        self._offsets = self.model.rot_offsets(mo) if self.model.has_offsets() else None
+        try:
+            out = {g: self._transform(g, acc, mo, nt) for g in self.model.groups}
+        finally:
+            self._forms = self._offsets = None
+        return mo, {g: o for g, o in out.items() if o}
+
+    def system(self, idx=None) -> SystemTerms:
+        """Linear (state-independent) terms at time nodes ``idx``.
+
+        Parameters
+        ----------
+        idx : array_like of int, optional
+            Time node indices; default all.
+
+        Returns
+        -------
+        SystemTerms
+            ``M, C, K`` (nt, N, N) and ``Q`` (nt, N) in q-space.
+        """
+        if idx is None:
+            idx = np.arange(self.motion.n)
+        idx = np.asarray(idx)
+        nt, N = idx.size, self.model.n_dof
+        mo, groups = self._group_terms(idx)
+        tot = {k: np.zeros((nt, N, N)) for k in ("M", "C", "K", "Ks")}
+        Q = np.zeros((nt, N))
+        for gname, out in groups.items():
+            for key in tot:
+                if key in out:
+                    tot[key] += self.model.scatter_matrix(gname, out[key])
+            if "Q" in out:
+                Q += self.model.scatter_vector(gname, out["Q"])
+        if "axial_stiffening" in self.has and self.model.rigid_groups:
+            tot["K"] += self._rigid_geometric(mo, idx)
+        if self.damping is not None:
+            tot["C"] += self._damping(tot["M"], tot["Ks"])
+        return SystemTerms(tot["M"], tot["C"], tot["K"], Q)
+
+    def sparse_system(self, node: int = 0):
+        """Terms at one time node as scipy.sparse CSR matrices (COO -> CSR scatter).
+
+        Returns
+        -------
+        M, C, K : scipy.sparse.csr_matrix, shape (N, N)
+        Q : ndarray, shape (N,)
+        """
+        idx = np.array([node])
+        N = self.model.n_dof
+        mo, groups = self._group_terms(idx)
+        tot = {k: sp.csr_matrix((N, N)) for k in ("M", "C", "K", "Ks")}
+        Q = np.zeros(N)
+        for gname, out in groups.items():
+            for key in tot:
+                if key in out:
+                    tot[key] = tot[key] + self.model.scatter_sparse(gname, out[key][0])
+            if "Q" in out:
+                Q += self.model.scatter_vector(gname, out["Q"])[0]
+        if "axial_stiffening" in self.has and self.model.rigid_groups:
+            tot["K"] = tot["K"] + sp.csr_matrix(self._rigid_geometric(mo, idx)[0])
+        if self.damping is not None:
+            if isinstance(self.damping, Rayleigh):
+                tot["C"] = tot["C"] + self.damping.alpha * tot["M"] + self.damping.beta * tot["Ks"]
+            else:
+                Cd = self._damping(tot["M"].toarray()[None], tot["Ks"].toarray()[None])[0]
+                tot["C"] = tot["C"] + sp.csr_matrix(Cd)
+        return tot["M"], tot["C"], tot["K"], Q
+
+    def structural(self, idx=None):
+        """Mass and structural stiffness only (no effects), each (nt, N, N)."""
+        if idx is None:
+            idx = np.arange(self.motion.n)
+        idx = np.asarray(idx)
+        saved = self.has
+        self.has = set()
+        try:
+            mo = slice_motion(self.motion, idx)
+            acc = _Acc()
+            self._beam_terms(mo, idx, acc)
+            self._rigid_terms(mo, acc)
+            self._pmass_terms(mo, acc)
+            self._spring_terms(mo, acc)
+            self._forms = self.model.point_forms(mo) if self.model.has_moving_maps() else None
+            self._offsets = None
+            nt, N = idx.size, self.model.n_dof
+            M = np.zeros((nt, N, N))
+            Ks = np.zeros((nt, N, N))
+            for gname in self.model.groups:
+                out = self._transform(gname, acc, mo, nt)
+                if out and "M" in out:
+                    M += self.model.scatter_matrix(gname, out["M"])
+                if out and "Ks" in out:
+                    Ks += self.model.scatter_matrix(gname, out["Ks"])
+        finally:
+            self.has = saved
+            self._forms = None
+        return M, Ks
+
+    def _damping(self, M, Ks):
+        d = self.damping
+        if isinstance(d, Rayleigh):
+            return d.alpha * M + d.beta * Ks
+        # modal damping at every time node
+        L = _cholesky(M, self.model)
+        Linv = np.linalg.inv(L)
+        A = Linv @ Ks @ np.swapaxes(Linv, -1, -2)
+        A = 0.5 * (A + np.swapaxes(A, -1, -2))
+        lam, V = np.linalg.eigh(A)
+        om = np.sqrt(np.clip(lam, 0.0, None))
+        scale = float(np.max(om)) if om.size else 0.0
+        om = np.where(om > 1e-8 * max(scale, 1e-300), om, 0.0)
+        LV = L @ V
+        return (LV * (2.0 * d.zeta * om)[:, None, :]) @ np.swapaxes(LV, -1, -2)
+
+    # ----------------------------------------------------------- state terms
+    def element_state(self, gname, mo, U, V=None):
+        """Total element DOFs ``x = E q + p`` (and ``x'``) of a group, (nt, n_el, d)."""
+        gm = self.model.group_map(gname, mo)
+        Up = np.concatenate([U, np.zeros((U.shape[0], 1))], axis=1)
+        qe = Up[:, gm.cols]  # (nt, n_el, m)
+        x = (gm.E @ qe[..., None])[..., 0]
+        if gm.p is not None:
+            x = x + gm.p
+        xd = None
+        if V is not None:
+            Vp = np.concatenate([V, np.zeros((V.shape[0], 1))], axis=1)
+            ve = Vp[:, gm.cols]
+            xd = (gm.E @ ve[..., None])[..., 0]
+            if gm.E1 is not None:
+                xd = xd + (gm.E1 @ qe[..., None])[..., 0]
+            if gm.p1 is not None:
+                xd = xd + gm.p1
+        return x, xd, gm
+
+    def state_terms(self, U, V, idx=None):
+        """State-dependent terms for the trial response ``U, V`` (n, N).
+
+        Returns
+        -------
+        dK : ndarray, shape (n, N, N) or None
+            Tangent stiffness of the state-dependent effects.
+        dQ : ndarray, shape (n, N) or None
+            Matching load, ``-f_nl(x) + K_nl x`` so that a fixed point of the
+            linear solve satisfies the non-linear equations.
+        """
+        if idx is None:
+            idx = np.arange(self.motion.n)
+        mo = slice_motion(self.motion, idx)
+        nt, N = len(idx), self.model.n_dof
+        dK = np.zeros((nt, N, N))
+        dQ = np.zeros((nt, N))
+        used = False
+        if "geometric_nonlinearity" in self.has and self.model.beam.L.size:
+            used = True
+            self._von_karman(mo, U, dK, dQ)
+        if "springs" in self.has and any(s.nonlinear for s in self.mech.springs.values()):
+            used = True
+            self._cubic_springs(mo, U, dK, dQ)
+        if "loads" in self.has and any(f.follows == "total" for f in self.mech.frictions.values()):
+            used = True
+            self._friction_total(mo, U, V, dQ)
+        if not used:
+            return None, None
+        return dK, dQ
+
+    def _apply_state(self, gname, gm, Kx, Qx, dK, dQ):
+        E = gm.E
+        Et = np.swapaxes(E, -1, -2)
+        nt = dQ.shape[0]
+        if Kx is not None:
+            dK += self.model.scatter_matrix(gname, np.broadcast_to(Et @ Kx @ E, (nt,) + (E.shape[1], E.shape[3], E.shape[3])))
+        if Qx is not None:
+            dQ += self.model.scatter_vector(gname, np.broadcast_to((Et @ Qx[..., None])[..., 0], (nt,) + (E.shape[1], E.shape[3])))
+
+    def _von_karman(self, mo, U, dK, dQ):
+        """Von Karman tangent stiffness of all flexible links (local frames)."""
+        b = self.model.beam
+        x, _xd, gm = self.element_state("beam", mo, U)
+        th = mo.theta[:, self._beam_member]
+        T = el.rotation_blocks(th)
+        d = (T @ x[..., None])[..., 0]  # local element DOFs (nt, n_el, 6)
+        G = el.geometric_matrix(b.L)    # (n_el, 4, 4)
+        vb = d[..., el.V_DOFS]
+        Gv = (G @ vb[..., None])[..., 0]
+        quad = np.einsum("tni,tni->tn", vb, Gv)
+        N_lin = b.EA * (d[..., 3] - d[..., 0]) / b.L
+        N_nl = b.EA * quad / (2.0 * b.L)
+        N = N_lin + N_nl
+        bvec = np.zeros(d.shape)
+        bvec[..., 0] = -1.0
+        bvec[..., 3] = 1.0
+        bvec[..., el.V_DOFS] = Gv
+        b0 = np.zeros(6)
+        b0[0], b0[3] = -1.0, 1.0
+        EAL = (b.EA / b.L)[:, None, None]
+        Knl = EAL * (bvec[..., :, None] * bvec[..., None, :] - np.outer(b0, b0))
+        Knl[..., el.V_DOFS[:, None], el.V_DOFS[None, :]] += N[..., None, None] * G
+        fnl = np.zeros(d.shape)
+        fnl[..., 0] = -N_nl
+        fnl[..., 3] = N_nl
+        fnl[..., el.V_DOFS] = N[..., None] * Gv
+        Qloc = -fnl + (Knl @ d[..., None])[..., 0]
+        Tt = np.swapaxes(T, -1, -2)
+        self._apply_state("beam", gm, Tt @ Knl @ T, (Tt @ Qloc[..., None])[..., 0], dK, dQ)
+
+    def _cubic_springs(self, mo, U, dK, dQ):
+        g = self.model.groups["spring"]
+        items = g.meta["items"]
+        x, _xd, gm = self.element_state("spring", mo, U)
+        B = self._spring_B()
+        de = np.einsum("ni,tni->tn", B, x)
+        dr = self._spring_rigid_extension(mo)
+        k3 = np.array([s.k3 for s in items])
+        dt = dr + de
+        knl = 3.0 * k3 * dt**2
+        fnl = k3 * (dt**3 - dr**3)  # F(dr + de) - F(dr) - k de
+        BB = B[:, :, None] * B[:, None, :]
+        Kx = knl[..., None, None] * BB
+        Qx = (-fnl + knl * de)[..., None] * B
+        self._apply_state("spring", gm, Kx, Qx, dK, dQ)
+
+    def _friction_total(self, mo, U, V, dQ):
+        g = self.model.groups["load"]
+        items = g.meta["items"]
+        x, xd, gm = self.element_state("load", mo, U, V)
+        Qx = np.zeros(x.shape)
+        for k, it in enumerate(items):
+            if getattr(it, "follows", None) != "total":
+                continue
+            j = mo.joint_names.index(it.joint)
+            n = np.asarray(it.axis)
+            vrel = (mo.v[:, j] + xd[:, k]) @ n - it.reference_speed
+            Qx[:, k] = -(it.force * np.tanh(vrel / it.smoothing))[:, None] * n
+        self._apply_state("load", gm, None, Qx, None, dQ)
+
+
+def _cholesky(M, model):
+    try:
+        return np.linalg.cholesky(0.5 * (M + np.swapaxes(M, -1, -2)))
+    except np.linalg.LinAlgError:
+        d = np.diagonal(M, axis1=-2, axis2=-1)
+        bad = np.flatnonzero(np.min(d, axis=0) <= 0)
+        labels = ", ".join(model.dof_labels[i] for i in bad[:8]) or "(no zero diagonal)"
+        from .errors import SingularMassError
+        raise SingularMassError(f"{model.mech.name}: the mass matrix is singular or indefinite "
+                                f"(DOFs without mass: {labels}); give the members mass or rotary "
+                                "inertia") from None

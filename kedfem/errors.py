@@ -1,0 +1,52 @@
+"""Exceptions and warnings raised by kedfem.
+
+Every error a user can trigger derives from :class:`KedError`, so that
+``except kf.KedError`` catches all of them. Input errors also derive from
+:class:`ValueError` so that generic callers see a familiar type.
+"""
+
+from __future__ import annotations
+
+
+class KedError(Exception):
+    """Base class of every error raised by kedfem."""
+
+
+class InputError(KedError, ValueError):
+    """Bad user input: the message names the argument, link, joint or key."""
+
+
+class KinematicsError(KedError):
+    """The linkage cannot be assembled or cannot complete its cycle."""
+
+
+class MobilityError(KinematicsError):
+    """The linkage's mobility does not match its drives."""
+
+
+class ResonanceError(KedError):
+    """``I - Phi`` is (numerically) singular: a Floquet multiplier sits at 1.
+
+    Raised by the periodic solver for an undamped system forced at
+    resonance, a free rigid-body mode, or a mechanism that is not fully
+    constrained. Attributes ``multiplier`` (complex) and ``condition``
+    (float, condition estimate of ``I - Phi``) describe the offending mode.
+    """
+
+    def __init__(self, message: str, multiplier: complex | None = None,
+                 condition: float | None = None):
+        super().__init__(message)
+        self.multiplier = multiplier
+        self.condition = condition
+
+
+class SingularMassError(KedError):
+    """The mass matrix is singular or indefinite (massless or negative-mass DOFs)."""
+
+
+class InstabilityWarning(UserWarning):
+    """A Floquet multiplier lies outside the unit circle (parametric instability)."""
+
+
+class ConvergenceWarning(UserWarning):
+    """A non-linear iteration stopped before meeting its tolerance."""

@@ -1,0 +1,39 @@
+"""Mechanism definitions: each module has ``build(**params) -> kedfem.Mechanism``.
+
+``available()`` lists them; ``get(name)`` returns the module.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+from kedfem.errors import InputError
+
+__all__ = ["available", "get", "build"]
+
+_NAMES = ("slider_crank", "four_bar", "mould_oscillator", "six_bar")
+
+
+def available() -> tuple[str, ...]:
+    """Names of the mechanisms shipped with kedfem that are importable."""
+    out = []
+    for n in _NAMES:
+        try:
+            importlib.import_module(f"mechanisms.{n}")
+        except ModuleNotFoundError:
+            continue
+        out.append(n)
+    return tuple(out)
+
+
+def get(name: str):
+    """The module of mechanism ``name`` (``-`` and ``_`` are interchangeable)."""
+    key = str(name).replace("-", "_")
+    if key not in available():
+        raise InputError(f"unknown mechanism {name!r}; available: {', '.join(available())}")
+    return importlib.import_module(f"mechanisms.{key}")
+
+
+def build(name: str, **params):
+    """Build mechanism ``name`` with keyword parameters."""
+    return get(name).build(**params)

@@ -1,0 +1,101 @@
+"""Bad input gets a clear error that names the problem, raised at once."""
+
+import pytest
+
+import kedfem as kf
+
+STEEL = kf.Material(E=2e11, rho=7800)
+SEC = kf.Section.rectangle(0.01, 0.01)
+
+
+def base():
+    m = kf.Mechanism("m")
+    m.ground("O", at=(0, 0))
+    m.joint("A", at=(0.1, 0))
+    return m
+
+
+def test_link_naming_unknown_joint():
+    m = base()
+    with pytest.raises(kf.InputError, match="link 'rod' names unknown joint 'Q'"):
+        m.link("rod", "A", "Q", material=STEEL, section=SEC)
+
+
+@pytest.mark.parametrize("kw,name", [(dict(E=-1, rho=1), "E"), (dict(E=0, rho=1), "E"),
+                                     (dict(E=1, rho=0), "rho"), (dict(E=float("nan"), rho=1), "E")])
+def test_bad_material(kw, name):
+    with pytest.raises(kf.InputError, match=f"Material: {name}"):
+        kf.Material(**kw)
+
+
+@pytest.mark.parametrize("kw,name", [(dict(A=0, I=1), "A"), (dict(A=1, I=-2), "I"),
+                                     (dict(A="x", I=1), "A")])
+def test_bad_section(kw, name):
+    with pytest.raises(kf.InputError, match=f"Section: {name}"):
+        kf.Section(**kw)
+    with pytest.raises(kf.InputError, match="h"):
+        kf.Section.rectangle(0.01, -0.01)
+
+
+def test_zero_length_and_bad_elements():
+    m = base()
+    m.joint("B", at=(0.1, 0))
+    with pytest.raises(kf.InputError, match="link 'z': zero length"):
+        m.link("z", "A", "B", material=STEEL, section=SEC)
+    with pytest.raises(kf.InputError, match="elements"):
+        m.link("c", "O", "A", material=STEEL, section=SEC, elements=0)
+    with pytest.raises(kf.InputError, match="needs material"):
+        m.link("c", "O", "A")
+
+
+def test_disconnected_graph():
+    m = base()
+    m.joint("X", at=(1, 1))
+    m.joint("Y", at=(2, 1))
+    m.link("c", "O", "A", material=STEEL, section=SEC)
+    m.link("d", "X", "Y", material=STEEL, section=SEC)
+    with pytest.raises(kf.InputError, match=r"disconnected.*\{X, Y\}"):
+        kf.FEModel(m)
+
+
+def test_drive_on_link_without_ground_joint():
+    m = base()
+    m.joint("B", at=(0.3, 0))
+    m.link("c", "O", "A", rigid=True)
+    m.link("r", "A", "B", material=STEEL, section=SEC)
+    with pytest.raises(kf.InputError, match="drive on 'r'.*ground joint"):
+        m.drive("r", speed=1.0)
+    with pytest.raises(kf.InputError, match="unknown link or body 'nope'"):
+        m.drive("nope", speed=1.0)
+
+
+def test_duplicates_and_reserved_names():
+    m = base()
+    with pytest.raises(kf.InputError, match="joint 'A' is defined twice"):
+        m.joint("A", at=(0, 1))
+    with pytest.raises(kf.InputError, match="reserved"):
+        m.joint("ground", at=(0, 1))
+    m.link("c", "O", "A", rigid=True)
+    with pytest.raises(kf.InputError, match="'c' is used twice"):
+        m.link("c", "O", "A", rigid=True)
+
+
+def test_bad_positions_and_axes():
+    m = kf.Mechanism("m")
+    with pytest.raises(kf.InputError, match="at"):
+        m.joint("A", at=(0, float("inf")))
+    with pytest.raises(kf.InputError, match="axis"):
+        m.slider("S", at=(0, 0), axis=(0, 0))
+
+
+def test_unsynchronised_drives():
+    m = kf.Mechanism("two")
+    m.ground("O1", at=(0, 0))
+    m.ground("O2", at=(1, 0))
+    m.joint("A", at=(0.1, 0))
+    m.joint("B", at=(1.1, 0))
+    m.link("c1", "O1", "A", rigid=True)
+    m.link("c2", "O2", "B", rigid=True)
+    m.drive("c1", speed=10.0)
+    with pytest.raises(kf.InputError, match="integer multiple"):
+        m.drive("c2", speed=15.0)
