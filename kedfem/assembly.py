@@ -569,7 +569,12 @@ class FEModel:
         colarr = np.full((n_el, m), len(self.dof_labels), dtype=int)
         E0 = np.zeros((n_el, g.d, m))
         moving = []   # (element, row0, col0, point id, k)
-        offsets = []  # (element, row, rot id)
+        offsets = []  # (element, row, rot id) or (element, row, -1 - passive link index)
+        passive_end = {}
+        if gname == "beam":
+            for li, name in enumerate(self.beam.links):
+                if not self.mech.links[name].kinematic:
+                    passive_end[self.beam.first[name] + self.beam.count[name] - 1] = li
         for e in range(n_el):
             row = 0
             c = 0
@@ -591,6 +596,8 @@ class FEModel:
                         if self.rots[eid].offset:
                             offsets.append((e, row, eid))
                     c += k
+                if kind == "P" and slot == 2 and e in passive_end:
+                    offsets.append((e, row, -1 - passive_end[e]))
                 row += width
         out = (colarr, E0, moving, offsets)
         self._static_cache[gname] = out
@@ -635,8 +642,32 @@ class FEModel:
         return any(self._point_moving(i) for i in range(len(self.points)))
 
     def has_offsets(self) -> bool:
-        """True if some rotation carries a prescribed offset."""
-        return any(rd.offset for rd in self.rots)
+        """True if some rotation or passive link end carries a prescribed offset."""
+        return any(rd.offset for rd in self.rots) or any(not lk.kinematic for lk in self.mech.flexible_links)
+
+    def chord_stretch(self, link: str, motion: Motion):
+        """Prescribed end displacement of a passive link and its time derivatives.
+
+        ``p = (l - L0) e1`` with ``l`` the chord length between the link's end
+        joints and ``e1`` the chord direction; returns three (nt, 2) arrays.
+        """
+        lk = self.mech.links[link]
+        ia, ib = motion.joint_names.index(lk.a), motion.joint_names.index(lk.b)
+        d = motion.r[:, ib] - motion.r[:, ia]
+        dd = motion.v[:, ib] - motion.v[:, ia]
+        ddd = motion.a[:, ib] - motion.a[:, ia]
+        ell = np.linalg.norm(d, axis=1)
+        e1 = d / ell[:, None]
+        e2 = e1 @ _S.T
+        l1 = np.einsum("nd,nd->n", d, dd) / ell
+        l2 = (np.einsum("nd,nd->n", dd, dd) + np.einsum("nd,nd->n", d, ddd)) / ell - l1**2 / ell
+        i = motion.member_names.index(link)
+        w, al = motion.omega[:, i, None], motion.alpha[:, i, None]
+        ext = (ell - lk.length)[:, None]
+        p = ext * e1
+        p1 = l1[:, None] * e1 + ext * w * e2
+        p2 = l2[:, None] * e1 + 2 * l1[:, None] * w * e2 + ext * (al * e2 - w**2 * e1)
+        return p, p1, p2
 
     def group_map(self, gname: str, motion: Motion, forms=None, offsets=None) -> GroupMap:
         """Constraint map of a group over the motion's time nodes."""
@@ -666,9 +697,13 @@ class FEModel:
             p1 = np.zeros_like(p)
             p2 = np.zeros_like(p)
             for e, row, rid in offs:
-                p[:, e, row] = po[:, rid]
-                p1[:, e, row] = po1[:, rid]
-                p2[:, e, row] = po2[:, rid]
+                if rid >= 0:
+                    p[:, e, row] = po[:, rid]
+                    p1[:, e, row] = po1[:, rid]
+                    p2[:, e, row] = po2[:, rid]
+                else:
+                    p[:, e, row:row + 2], p1[:, e, row:row + 2], p2[:, e, row:row + 2] = \
+                        self.chord_stretch(self.beam.links[-1 - rid], motion)
         return GroupMap(colarr, E, E1, E2, p, p1, p2)
 
     # --------------------------------------------------------------- scatter

@@ -337,6 +337,8 @@ class Assembler:
             forces = self.joint_forces()
             out = np.zeros((self.motion.n, b.L.size))
             for name in b.links:
+                if not self.mech.links[name].kinematic:
+                    continue  # a redundant member takes no kinetostatic force
                 sl = self.model.link_elements(name)
                 s1 = b.s1[sl]
                 out[:, sl] = link_axial_force(self.mech, self.motion, forces, name, s1, s1 + b.L[sl],

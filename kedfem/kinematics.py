@@ -170,7 +170,8 @@ class _LoopModel:
         self.mech = mech
         self.joint_names = tuple(mech.joints)
         self.jindex = {j: i for i, j in enumerate(self.joint_names)}
-        self.member_names = tuple(list(mech.links) + list(mech.bodies))
+        self.passive = tuple(n for n, lk in mech.links.items() if not lk.kinematic)
+        self.member_names = tuple([n for n in mech.links if n not in self.passive] + list(mech.bodies))
         self.mindex = {m: i for i, m in enumerate(self.member_names)}
         self.slider_names = tuple(j.name for j in mech.joints.values() if j.kind == "slider")
         nm = len(self.member_names)
@@ -267,7 +268,7 @@ class _LoopModel:
         for j in mech.joints.values():
             if not j.welded:
                 continue
-            mem = mech.members_at(j.name)
+            mem = [m for m in mech.members_at(j.name) if m in self.mindex]
             idx = [self.mindex[m] for m in mem]
             if j.kind == "ground":
                 for i in idx:
@@ -563,8 +564,32 @@ def _motion(model: _LoopModel, t, crank, y, period):
     res = model.residual(theta, s)
     resid = float(np.max(np.abs(res))) if res.size else 0.0
     r, v, a = _joint_states(model, theta, s, omega, sd, alpha, sdd)
-    return Motion(model.mech.name, t, crank, period, model.joint_names, model.member_names,
-                  model.slider_names, r, v, a, theta, omega, alpha, s, sd, sdd, resid, model.theta0.copy())
+    names, theta, omega, alpha, ref = _with_passive(model, r, v, a, theta, omega, alpha)
+    return Motion(model.mech.name, t, crank, period, model.joint_names, names,
+                  model.slider_names, r, v, a, theta, omega, alpha, s, sd, sdd, resid, ref)
+
+
+def _with_passive(model, r, v, a, theta, omega, alpha):
+    """Append the chord angle, its rate and acceleration of every passive link."""
+    if not model.passive:
+        return model.member_names, theta, omega, alpha, model.theta0.copy()
+    th, om, al, ref = [], [], [], []
+    for name in model.passive:
+        lk = model.mech.links[name]
+        ia, ib = model.jindex[lk.a], model.jindex[lk.b]
+        d, dd, ddd = r[:, ib] - r[:, ia], v[:, ib] - v[:, ia], a[:, ib] - a[:, ia]
+        n2 = np.einsum("nd,nd->n", d, d)
+        cross1 = d[:, 0] * dd[:, 1] - d[:, 1] * dd[:, 0]
+        cross2 = d[:, 0] * ddd[:, 1] - d[:, 1] * ddd[:, 0]
+        dot1 = np.einsum("nd,nd->n", d, dd)
+        th.append(np.arctan2(d[:, 1], d[:, 0]))
+        om.append(cross1 / n2)
+        al.append(cross2 / n2 - 2.0 * dot1 * cross1 / n2**2)
+        pa, pb = np.array(model.mech.joints[lk.a].at), np.array(model.mech.joints[lk.b].at)
+        ref.append(math.atan2(pb[1] - pa[1], pb[0] - pa[0]))
+    cat = lambda x, y: np.concatenate([x, np.stack(y, axis=1)], axis=1)  # noqa: E731
+    return (model.member_names + model.passive, cat(theta, th), cat(omega, om), cat(alpha, al),
+            np.concatenate([model.theta0, ref]))
 
 
 def kinematics(mechanism: Mechanism, steps: int = 360) -> Motion:
@@ -672,6 +697,6 @@ def static_motion(mechanism: Mechanism) -> Motion:
     r = np.array([[mechanism.joints[j].at for j in model.joint_names]])
     zero = np.zeros_like(r)
     crank = theta[:, model.drive_idx[0]] if model.drive_idx.size else np.zeros(1)
-    return Motion(mechanism.name, np.zeros(1), crank, math.inf, model.joint_names, model.member_names,
-                  model.slider_names, r, zero, zero.copy(), theta, z, z.copy(), s, zs, zs.copy(), 0.0,
-                  model.theta0.copy())
+    names, theta, z, z2, ref = _with_passive(model, r, zero, zero, theta, z, z.copy())
+    return Motion(mechanism.name, np.zeros(1), crank, math.inf, model.joint_names, names,
+                  model.slider_names, r, zero, zero.copy(), theta, z, z2, s, zs, zs.copy(), 0.0, ref)

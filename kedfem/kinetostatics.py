@@ -118,7 +118,9 @@ def kinetostatics(mech: Mechanism, motion: Motion, *, inertia: bool = True,
         the joint forces are not unique.
     """
     n = motion.n
-    members = list(motion.member_names)
+    # redundant (kinematic=False) links take no kinetostatic force: their mass goes to their pins
+    passive = [m for m in motion.member_names if m in mech.links and not mech.links[m].kinematic]
+    members = [m for m in motion.member_names if m not in passive]
     joints = list(motion.joint_names)
     midx = {m: i for i, m in enumerate(members)}
     jidx = {j: i for i, j in enumerate(joints)}
@@ -184,10 +186,10 @@ def kinetostatics(mech: Mechanism, motion: Motion, *, inertia: bool = True,
         rhs = np.zeros((n, 3))
         if inertia:
             rhs[:, :2] += mass * ac
-            rhs[:, 2] += J * motion.alpha[:, i]
+            rhs[:, 2] += J * motion.alpha[:, midx[mname]]
         rhs[:, :2] -= mass * g
         if member_moments is not None:
-            rhs[:, 2] -= member_moments[:, i]
+            rhs[:, 2] -= member_moments[:, midx[mname]]
         b[:, r0:r0 + 3] = rhs
     # pin equations
     r0 = 3 * len(members)
@@ -196,6 +198,10 @@ def kinetostatics(mech: Mechanism, motion: Motion, *, inertia: bool = True,
     for pm in mech.point_masses:
         pm_mass[jidx[pm.joint]] += pm.mass
         pm_J[jidx[pm.joint]] += pm.J
+    for name in passive:
+        lk = mech.links[name]
+        pm_mass[jidx[lk.a]] += 0.5 * lk.mass
+        pm_mass[jidx[lk.b]] += 0.5 * lk.mass
     weld_row = r0 + 2 * len(joints)
     for jn, jname in enumerate(joints):
         jt = mech.joints[jname]

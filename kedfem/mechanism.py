@@ -110,6 +110,7 @@ class Link:
     mass_matrix: str
     timoshenko: bool
     length: float
+    kinematic: bool = True
 
     @property
     def joints(self) -> tuple[str, str]:
@@ -333,7 +334,8 @@ class Mechanism:
     def link(self, name: str, a: str, b: str, *, material: Material | None = None,
              section: Section | None = None, elements: int = 1, rigid: bool = False,
              ends=("pin", "pin"), mass: float | None = None, J: float | None = None,
-             mass_matrix: str = "consistent", timoshenko: bool = False) -> Link:
+             mass_matrix: str = "consistent", timoshenko: bool = False,
+             kinematic: bool = True) -> Link:
         """Add a straight link from joint ``a`` to joint ``b``.
 
         Parameters
@@ -363,6 +365,12 @@ class Mechanism:
             Element mass matrix of a flexible link.
         timoshenko : bool
             Shear-flexible (Timoshenko) stiffness for a flexible link.
+        kinematic : bool
+            ``False`` for a redundant flexible member (e.g. a second guiding
+            leaf-spring pack): it takes no part in the rigid-body kinematics;
+            its frame follows the chord between its end joints, and the change
+            of chord length is a prescribed elastic elongation. It carries no
+            kinetostatic force; its axial force comes from the elastic solution.
         """
         self._check_component_name("link", name)
         owner = f"link '{name}'"
@@ -384,6 +392,9 @@ class Mechanism:
             raise InputError(f"{owner}: material must be a kedfem.Material, got {material!r}")
         if section is not None and not isinstance(section, Section):
             raise InputError(f"{owner}: section must be a kedfem.Section, got {section!r}")
+        if not kinematic and rigid:
+            raise InputError(f"{owner}: a rigid link must take part in the kinematics (kinematic=False "
+                             "is for redundant flexible members)")
         if rigid:
             if mass is not None:
                 m = _number(owner, "mass", mass, nonneg=True)
@@ -404,7 +415,7 @@ class Mechanism:
             m = material.rho * section.A * length
             j = m * length**2 / 12.0
         lk = Link(name, a, b, bool(rigid), material, section, n_el, ends, float(m), float(j),
-                  mass_matrix, bool(timoshenko), length)
+                  mass_matrix, bool(timoshenko), length, bool(kinematic))
         self.links[name] = lk
         self.graph.add_edge(a, b, key=name, kind="link", component=lk)
         return lk
@@ -537,6 +548,8 @@ class Mechanism:
         owner = f"drive on '{member}'"
         if member not in self.links and member not in self.bodies:
             raise InputError(f"{owner}: unknown link or body '{member}'")
+        if member in self.links and not self.links[member].kinematic:
+            raise InputError(f"{owner}: '{member}' has kinematic=False and cannot be driven")
         if any(d.member == member for d in self.drives):
             raise InputError(f"{owner}: '{member}' is driven twice")
         speed = _number(owner, "speed", speed)

@@ -140,3 +140,28 @@ def test_clamped_end_on_pin_is_prescribed_rotation():
     rid = fe.end_rot[("leaf", "G")]
     np.testing.assert_allclose(p[:, rid], -(mo.angle("leaf") - mo.angle("leaf")[0]), atol=1e-14)
     np.testing.assert_allclose(p1[:, rid], -mo.angular_velocity("leaf"), atol=1e-14)
+
+
+def test_passive_link_follows_chord_and_prescribes_stretch():
+    """A redundant bar from the frame to the slider: its chord stretch is a prescribed elongation."""
+    m = mechanisms.build("slider_crank", elements=2)
+    m.ground("G", at=(0.8, 0.0))
+    bar = kf.Section.rectangle(0.01, 0.01)
+    m.link("bar", "B", "G", material=STEEL, section=bar, elements=1, kinematic=False)
+    fe = kf.FEModel(m)
+    mo = kf.kinematics(m, steps=12)
+    # the passive link's angle is the chord angle (B -> G along +x), not a loop unknown
+    np.testing.assert_allclose(np.cos(mo.angle("bar")), 1.0, atol=1e-12)
+    with pytest.raises(kf.MobilityError):
+        m2 = mechanisms.build("slider_crank", elements=2)
+        m2.ground("G", at=(0.8, 0.0))
+        m2.link("bar", "B", "G", material=STEEL, section=bar, elements=1)  # kinematic: over-constrained
+        kf.kinematics(m2, steps=12)
+    xB = mo.position("B")[:, 0]
+    stretch = (0.8 - xB) - (0.8 - xB[0])
+    for k in (0, 3, 7):
+        g = kf.global_matrices(m, crank_angle=mo.crank_angle[k])
+        i = g.dof_labels.index("B.s")
+        EA = STEEL.E * bar.A
+        # the bar (B -> G) pulls B towards G (+x) when it is stretched
+        assert g.Q[i] == pytest.approx(EA / 0.35 * stretch[k], rel=1e-9, abs=1e-6)
