@@ -293,6 +293,12 @@ class _LoopModel:
         self.edge_member = np.array([e[3] if e[2] == "member" else -1 for e in self.edges])
         self.edge_slider = np.array([e[3] if e[2] == "slider" else -1 for e in self.edges])
         self.edge_vec0 = np.array([e[4] for e in self.edges])
+        self._mem_edges = np.flatnonzero(self.edge_member >= 0)
+        self._slider_edges = np.flatnonzero(self.edge_slider >= 0)
+        nm = len(self.member_names)
+        A = np.zeros((len(self.edges), nm))
+        A[self._mem_edges, self.edge_member[self._mem_edges]] = 1.0
+        self._Dm = self.D[:, :, None] * A[None]  # (nc, ne, nm)
         axes = []
         for name in self.slider_names:
             axes.append(np.array(self.mech.joints[name].axis))
@@ -316,13 +322,17 @@ class _LoopModel:
         ``d0`` the reference-configuration vector (bodies have angle 0 there).
         """
         lead = theta.shape[:-1]
-        w = np.broadcast_to(self.edge_vec0, lead + self.edge_vec0.shape).copy()
-        mem = self.edge_member >= 0
-        if mem.any():
-            R = _rot(theta[..., self.edge_member[mem]])
-            w[..., mem, :] = (R @ self.edge_vec0[mem][..., None])[..., 0]
-        sl = self.edge_slider >= 0
-        if sl.any():
+        w = np.empty(lead + self.edge_vec0.shape)
+        w[...] = self.edge_vec0
+        mem = self._mem_edges
+        if mem.size:
+            th = theta[..., self.edge_member[mem]]
+            c, sn = np.cos(th), np.sin(th)
+            v = self.edge_vec0[mem]
+            w[..., mem, 0] = c * v[:, 0] - sn * v[:, 1]
+            w[..., mem, 1] = sn * v[:, 0] + c * v[:, 1]
+        sl = self._slider_edges
+        if sl.size:
             k = self.edge_slider[sl]
             w[..., sl, :] += s[..., k, None] * self.slider_axis[k]
         return w
@@ -344,13 +354,10 @@ class _LoopModel:
         nm, ns = len(self.member_names), len(self.slider_names)
         nc = len(self.chords)
         J = np.zeros(lead + (2 * nc + len(self.welds), nm + ns))
-        mem = self.edge_member >= 0
-        sw = w @ _S.T  # S w
-        # d w_e / d theta_member = S w_e
-        A = np.zeros((len(self.edges), nm))
-        A[np.flatnonzero(mem), self.edge_member[mem]] = 1.0
-        Dm = self.D[:, :, None] * A[None]  # (nc, ne, nm)
-        Jt = np.einsum("cem,...ed->...cdm", Dm, sw)
+        sw = np.empty_like(w)  # d w_e / d theta_member = S w_e
+        sw[..., 0] = -w[..., 1]
+        sw[..., 1] = w[..., 0]
+        Jt = np.einsum("cem,...ed->...cdm", self._Dm, sw)
         J[..., : 2 * nc, :nm] = Jt.reshape(lead + (2 * nc, nm))
         sl = self.edge_slider >= 0
         if sl.any():
@@ -444,6 +451,58 @@ def _joint_states(model, theta, s, omega, sd, alpha, sdd):
     v = np.einsum("je,ned->njd", model.P, wd)
     a = np.einsum("je,ned->njd", model.P, wdd)
     return r, v, a
+
+
+def _cycle_positions(model, t, period, y0, tol):
+    """Positions at all nodes ``t``: coarse continuation, Hermite guess, batched Newton.
+
+    The branch is followed by continuation on a coarse grid (about 10 degrees
+    of crank per step, with step halving); the fine nodes start from a cubic
+    Hermite interpolation of the coarse solution and its exact rates, and are
+    corrected by Newton's method for all nodes at once. Returns the positions
+    (n, k) and the state continued to ``t = period``.
+    """
+    cols = model.unknown_columns()
+    n = t.size
+    n_c = min(n, 36)
+    h = period / n_c
+    tc = np.arange(n_c + 1) * h
+    yc = np.vstack([y0[None], _march(model, tc[1:], y0, tol)])
+    if n_c == n or cols.size == 0:
+        if cols.size == 0:
+            return np.broadcast_to(y0, (n, y0.size)).copy(), yc[-1]
+        return yc[:-1], yc[-1]
+    theta, s = _split(model, yc, model.drive_angles(tc))
+    omega, sd, _alpha, _sdd = _rates(model, theta, s, np.broadcast_to(model.drive_speed, (tc.size, model.drive_idx.size)), cols)
+    ydc = np.concatenate([omega[:, model.free_members], sd], axis=1)
+    k = np.minimum((t / h).astype(int), n_c - 1)
+    u = ((t - tc[k]) / h)[:, None]
+    guess = ((2 * u**3 - 3 * u**2 + 1) * yc[k] + (u**3 - 2 * u**2 + u) * h * ydc[k]
+             + (-2 * u**3 + 3 * u**2) * yc[k + 1] + (u**3 - u**2) * h * ydc[k + 1])
+    thd = model.drive_angles(t)
+    y = guess.copy()
+    ok = False
+    for _ in range(8):
+        theta, s = _split(model, y, thd)
+        res = model.residual(theta, s)
+        if np.max(np.abs(res)) <= tol:
+            ok = True
+            break
+        J = model.jacobian(theta, s)[:, :, cols]
+        try:
+            y = y + np.linalg.solve(J, -res[..., None])[..., 0]
+        except np.linalg.LinAlgError:
+            break
+    if ok and np.max(np.abs(y - guess)) < 1e-3:
+        J = model.jacobian(*_split(model, y, thd))[:, :, cols]
+        cond = np.linalg.cond(J)
+        bad = np.flatnonzero(~np.isfinite(cond) | (cond > 1e10))
+        if bad.size:
+            _fail(model, y[bad[0]], thd[bad[0]], t[bad[0]], 0.0, toggle=True)
+        return y, yc[-1]
+    log.debug("kinematics: batched Newton did not settle; marching through all %d nodes", n)
+    ys = np.vstack([y0[None], _march(model, t[1:], y0, tol)])
+    return ys, yc[-1]
 
 
 def _march(model, targets_t, y0, tol, max_depth=8):
@@ -627,9 +686,8 @@ def kinematics(mechanism: Mechanism, steps: int = 360) -> Motion:
     _check_reference(model, tol)
     t = np.arange(steps) * (period / steps)
     y0 = np.concatenate([model.theta0[model.free_members], np.zeros(len(model.slider_names))])
-    y = _march(model, t, y0, tol)
     # close the cycle: continuing to t = T must return to the reference configuration
-    yT = _advance(model, y[-1], t[-1], period, None, model.unknown_columns(), tol, 8)[0]
+    y, yT = _cycle_positions(model, t, period, y0, tol)
     nfree = model.free_members.size
     wrap = yT.copy()
     wrap[:nfree] = y0[:nfree] + np.round((yT[:nfree] - y0[:nfree]) / (2 * math.pi)) * 2 * math.pi

@@ -696,6 +696,20 @@ class Mechanism:
             if d.member not in self.links and d.member not in self.bodies:
                 raise InputError(f"drive on '{d.member}': unknown member")
 
+    def with_speed(self, speed: float) -> "Mechanism":
+        """A copy whose drives run at ``speed`` [rad/s] (first drive; the others keep their ratio)."""
+        import copy
+        if not self.drives:
+            raise InputError(f"{self.name}: has no drive to set a speed on")
+        speed = _number(f"{self.name}", "speed", speed)
+        if speed == 0.0:
+            raise InputError(f"{self.name}: speed must be non-zero: a scene needs a cycle of the drive")
+        new = copy.deepcopy(self)
+        ratio = speed / self.drives[0].speed
+        new.drives = [Drive(d.member, d.speed * ratio, d.ground_joint, d.torsional_stiffness)
+                      for d in self.drives]
+        return new
+
     def summary(self) -> str:
         """One-line-per-component text description."""
         lines = [f"Mechanism '{self.name}': {len(self.joints)} joints, {len(self.links)} links, "
