@@ -12,3 +12,8 @@ from .modal import ModalResult, global_matrices, natural_frequencies
 
 __version__ = "0.1.0"
 from .statics import StaticResult, static_response
+from .scene import Scene
+from .results import Frequencies, LinkPeaks, PeriodicResult
+from .pipeline import solve
+from . import periodic, nonlinear
+from .expm import expm

@@ -722,13 +722,17 @@ class Assembler:
 
     # ----------------------------------------------------------- state terms
     def element_state(self, gname, mo, U, V=None):
-        """Total element DOFs ``x = E q + p`` (and ``x'``) of a group, (nt, n_el, d)."""
+        """Element DOFs of a group for the trial response ``U, V``.
+
+        Returns ``x = E q + p`` (total elastic, incl. prescribed offsets), its
+        rate ``x'`` (None without ``V``), the part ``E q`` that the unknowns
+        carry, and the group map; arrays (nt, n_el, d).
+        """
         gm = self.model.group_map(gname, mo)
         Up = np.concatenate([U, np.zeros((U.shape[0], 1))], axis=1)
         qe = Up[:, gm.cols]  # (nt, n_el, m)
-        x = (gm.E @ qe[..., None])[..., 0]
-        if gm.p is not None:
-            x = x + gm.p
+        xq = (gm.E @ qe[..., None])[..., 0]
+        x = xq + gm.p if gm.p is not None else xq
         xd = None
         if V is not None:
             Vp = np.concatenate([V, np.zeros((V.shape[0], 1))], axis=1)
@@ -738,7 +742,7 @@ class Assembler:
                 xd = xd + (gm.E1 @ qe[..., None])[..., 0]
             if gm.p1 is not None:
                 xd = xd + gm.p1
-        return x, xd, gm
+        return x, xd, xq, gm
 
     def state_terms(self, U, V, idx=None):
         """State-dependent terms for the trial response ``U, V`` (n, N).
@@ -783,10 +787,11 @@ class Assembler:
     def _von_karman(self, mo, U, dK, dQ):
         """Von Karman tangent stiffness of all flexible links (local frames)."""
         b = self.model.beam
-        x, _xd, gm = self.element_state("beam", mo, U)
+        x, _xd, xq, gm = self.element_state("beam", mo, U)
         th = mo.theta[:, self._beam_member]
         T = el.rotation_blocks(th)
-        d = (T @ x[..., None])[..., 0]  # local element DOFs (nt, n_el, 6)
+        d = (T @ x[..., None])[..., 0]  # local element DOFs (nt, n_el, 6), total
+        dq = (T @ xq[..., None])[..., 0]  # the part carried by the unknowns
         G = el.geometric_matrix(b.L)    # (n_el, 4, 4)
         vb = d[..., el.V_DOFS]
         Gv = (G @ vb[..., None])[..., 0]
@@ -807,16 +812,18 @@ class Assembler:
         fnl[..., 0] = -N_nl
         fnl[..., 3] = N_nl
         fnl[..., el.V_DOFS] = N[..., None] * Gv
-        Qloc = -fnl + (Knl @ d[..., None])[..., 0]
+        # linearisation about x_i with the prescribed part p fixed:
+        # K_T (E q + p - x_i) + f_int(x_i) = Q  ->  Q_state = -f_nl(x_i) + K_nl (x_i - p)
+        Qloc = -fnl + (Knl @ dq[..., None])[..., 0]
         Tt = np.swapaxes(T, -1, -2)
         self._apply_state("beam", gm, Tt @ Knl @ T, (Tt @ Qloc[..., None])[..., 0], dK, dQ)
 
     def _cubic_springs(self, mo, U, dK, dQ):
         g = self.model.groups["spring"]
         items = g.meta["items"]
-        x, _xd, gm = self.element_state("spring", mo, U)
+        x, _xd, _xq, gm = self.element_state("spring", mo, U)
         B = self._spring_B()
-        de = np.einsum("ni,tni->tn", B, x)
+        de = np.einsum("ni,tni->tn", B, x)  # spring ends are points: no prescribed part
         dr = self._spring_rigid_extension(mo)
         k3 = np.array([s.k3 for s in items])
         dt = dr + de
@@ -830,7 +837,7 @@ class Assembler:
     def _friction_total(self, mo, U, V, dQ):
         g = self.model.groups["load"]
         items = g.meta["items"]
-        x, xd, gm = self.element_state("load", mo, U, V)
+        x, xd, _xq, gm = self.element_state("load", mo, U, V)
         Qx = np.zeros(x.shape)
         for k, it in enumerate(items):
             if getattr(it, "follows", None) != "total":

@@ -11,7 +11,7 @@ from kedfem.errors import InputError
 
 __all__ = ["available", "get", "build"]
 
-_NAMES = ("slider_crank", "four_bar", "mould_oscillator", "six_bar")
+_NAMES = ("mould_oscillator", "slider_crank", "four_bar", "six_bar", "exciter")
 
 
 def available() -> tuple[str, ...]:

@@ -1,0 +1,230 @@
+"""Periodic response of systems with state-dependent terms (paper section 4).
+
+The equation ``(M + dM) u'' + (C + dC) u' + (K + dK) u = Q + dQ`` has parts
+``dM, dC, dK, dQ`` that depend on the response itself (geometric non-linearity,
+non-linear springs, friction following the velocity sign, ...). They are supplied
+by a callback ``state_terms(U, V) -> (dM, dC, dK, dQ)`` evaluated on a trial
+periodic response ``U, V`` at the time nodes; the linear periodic problem with
+the terms frozen is solved by :func:`kedfem.periodic.solve`; this is the map
+``G``. The iteration looks for a fixed point of ``G``:
+
+``"fixed-point"``
+    The paper's iteration ``x_{i+1} = G(x_i)``.
+``"relaxation"``
+    ``x_{i+1} = (1 - w) x_i + w G(x_i)`` with ``0 < w <= 1`` (``relaxation``).
+``"anderson"``
+    Anderson acceleration, type II (Walker & Ni 2011), on the stacked vector
+    ``x = [U, V T / (2 pi)]`` (velocities scaled to displacement units) with the
+    last ``depth`` differences.
+
+The first iterate is the linear solve with the state terms evaluated at the zero
+response ``U = V = 0`` (which is the paper's linear first step whenever the terms
+vanish at zero). Convergence is the paper's Eq. 21,
+``||U_G - U_i||_F / ||U_G||_F <= eps`` with ``U_G = G(x_i)`` (the paper writes the
+ratio times 100 % against a percentage; here ``eps`` is a fraction). For the
+plain iteration ``U_G`` is the next iterate, so this is literally Eq. 21; for the
+accelerated methods it is the same fixed-point residual, not the (damped) step.
+A zero change over a zero response counts as converged (no 0/0).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import warnings
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from . import periodic
+from .errors import ConvergenceWarning, InputError
+
+__all__ = ["solve", "NonlinearResult", "NONLINEAR_METHODS"]
+
+log = logging.getLogger(__name__)
+
+NONLINEAR_METHODS = ("fixed-point", "relaxation", "anderson")
+#: Stop as diverging when the change grows this much above its smallest value...
+DIVERGENCE_FACTOR = 1e4
+#: ... or when the response grows this much beyond the first (linear) solve.
+GROWTH_LIMIT = 1e8
+
+StateTerms = Callable[[np.ndarray, np.ndarray], tuple]
+
+
+@dataclass(frozen=True)
+class NonlinearResult:
+    """Outcome of the non-linear periodic iteration.
+
+    Attributes
+    ----------
+    solution : PeriodicSolution
+        Linear periodic solution with the state terms evaluated at the last
+        accepted iterate (when converged: the fixed point to ``eps``).
+    iterations : int
+        Number of linear periodic solves.
+    history : ndarray, shape (iterations,)
+        Relative change ``||U_G - U_i||_F / ||U_G||_F`` of each solve (Eq. 21).
+    converged : bool
+    message : str
+    method : str
+    """
+
+    solution: periodic.PeriodicSolution
+    iterations: int
+    history: np.ndarray
+    converged: bool
+    message: str
+    method: str
+
+
+def _add(base, extra, name, shape, it):
+    if extra is None:
+        return base
+    extra = np.asarray(extra, dtype=float)
+    if extra.shape != shape:
+        raise InputError(f"state_terms returned {name} with shape {extra.shape} at iteration "
+                         f"{it}; expected {shape} (or None)")
+    bad = ~np.isfinite(extra)
+    if bad.any():
+        raise InputError(f"state_terms returned a non-finite {name} at iteration {it}, index "
+                         f"{tuple(int(i) for i in np.argwhere(bad)[0])}")
+    return base + extra  # broadcasting lifts constant (N, N) bases to (n, N, N)
+
+
+def solve(M, C, K, Q, period: float, state_terms: StateTerms, hold: str = "foh", *,
+          eps: float = 1e-6, max_iter: int = 50, method: str = "fixed-point",
+          relaxation: float = 0.5, depth: int = 5, **solver_kwargs) -> NonlinearResult:
+    """Iterate the linear periodic solve until the state-dependent terms settle.
+
+    Parameters
+    ----------
+    M, C, K : ndarray, shape (n, N, N) or (N, N)
+        State-independent (linear) parts, as in :func:`kedfem.periodic.solve`
+        (callables are not accepted here: the state terms are sampled arrays).
+    Q : ndarray, shape (n, N)
+        State-independent load.
+    period : float
+        Period, s.
+    state_terms : callable
+        ``state_terms(U, V) -> (dM, dC, dK, dQ)`` for a trial response ``U, V``
+        of shape ``(n, N)``; each returned item is ``None`` or an array of shape
+        ``(n, N, N)`` (``dM, dC, dK``) or ``(n, N)`` (``dQ``).
+    hold : str
+        Hold scheme of the linear solves.
+    eps : float
+        Convergence tolerance of Eq. 21 as a fraction (not percent).
+    max_iter : int
+        Maximum number of linear solves.
+    method : {"fixed-point", "relaxation", "anderson"}
+    relaxation : float
+        Weight ``w`` of the relaxation method, ``0 < w <= 1``.
+    depth : int
+        Number of previous differences Anderson acceleration keeps.
+    **solver_kwargs
+        Passed on to :func:`kedfem.periodic.solve` (``delta``, ``memory_budget``...).
+
+    Returns
+    -------
+    NonlinearResult
+        ``converged=False`` with a :class:`~kedfem.errors.ConvergenceWarning` when
+        ``max_iter`` is reached or the iteration diverges; the last iterate and
+        its history are returned either way.
+    """
+    if method not in NONLINEAR_METHODS:
+        raise InputError(f"unknown method {method!r}; valid methods: {', '.join(NONLINEAR_METHODS)}")
+    if not callable(state_terms):
+        raise InputError("state_terms must be callable: state_terms(U, V) -> (dM, dC, dK, dQ)")
+    if not (isinstance(max_iter, (int, np.integer)) and max_iter >= 1):
+        raise InputError(f"max_iter must be a positive integer, got {max_iter!r}")
+    if not (math.isfinite(eps) and eps > 0):
+        raise InputError(f"eps must be a positive number, got {eps!r}")
+    if not (0 < relaxation <= 1):
+        raise InputError(f"relaxation must lie in (0, 1], got {relaxation!r}")
+    if not (isinstance(depth, (int, np.integer)) and depth >= 1):
+        raise InputError(f"depth must be a positive integer, got {depth!r}")
+    for name, X in (("M", M), ("C", C), ("K", K), ("Q", Q)):
+        if callable(X):
+            raise InputError(f"{name} must be an array for the non-linear iteration, not a callable")
+    Q = np.asarray(Q, dtype=float)
+    if Q.ndim != 2:
+        raise InputError(f"Q must have shape (n, N), got {Q.shape}")
+    n, N = Q.shape
+    period = float(period)
+    vscale = period / (2 * math.pi)  # velocity -> displacement units in the stacked vector
+
+    def G(U, V, it):
+        dM, dC, dK, dQ = state_terms(U, V)
+        Mi = _add(M, dM, "dM", (n, N, N), it)
+        Ci = _add(C, dC, "dC", (n, N, N), it)
+        Ki = _add(K, dK, "dK", (n, N, N), it)
+        Qi = _add(Q, dQ, "dQ", (n, N), it)
+        return periodic.solve(Mi, Ci, Ki, Qi, period, hold=hold, **solver_kwargs)
+
+    def pack(U, V):
+        return np.concatenate([U.ravel(), (V * vscale).ravel()])
+
+    def unpack(x):
+        return x[:n * N].reshape(n, N), x[n * N:].reshape(n, N) / vscale
+
+    x = np.zeros(2 * n * N)
+    history: list[float] = []
+    dG: list[np.ndarray] = []
+    dF: list[np.ndarray] = []
+    f_prev = g_prev = None
+    first_norm = 0.0
+    sol = None
+    converged = False
+    message = ""
+    for it in range(1, max_iter + 1):
+        U, V = unpack(x)
+        sol = G(U, V, it)
+        g = pack(sol.U, sol.V)
+        f = g - x
+        dU = float(np.linalg.norm(sol.U - U))
+        nU = float(np.linalg.norm(sol.U))
+        change = 0.0 if dU == 0.0 else (dU / nU if nU > 0 else math.inf)
+        history.append(change)
+        log.debug("nonlinear.solve(%s): iteration %d change %.3e", method, it, change)
+        if change <= eps:
+            converged = True
+            message = f"converged after {it} linear solves (change {change:.2e} <= eps {eps:.1e})"
+            break
+        if it == 1:
+            first_norm = float(np.linalg.norm(g))
+        growth = float(np.linalg.norm(g)) / max(first_norm, np.finfo(float).tiny)
+        if (not np.isfinite(change) or not np.all(np.isfinite(g))
+                or change > DIVERGENCE_FACTOR * max(min(history), eps)
+                or growth > GROWTH_LIMIT):
+            message = (f"diverging: change {change:.2e}, response {growth:.2e} times the first "
+                       f"linear solve, after {it} linear solves (smallest change "
+                       f"{min(history):.2e})")
+            break
+        if method == "fixed-point":
+            x_new = g
+        elif method == "relaxation":
+            x_new = x + relaxation * f
+        else:
+            if f_prev is not None:
+                dG.append(g - g_prev)
+                dF.append(f - f_prev)
+                if len(dF) > depth:
+                    dG.pop(0)
+                    dF.pop(0)
+            x_new = g
+            if dF:
+                Fm = np.stack(dF, axis=1)
+                gamma, *_ = np.linalg.lstsq(Fm, f, rcond=1e-10)
+                x_new = g - np.stack(dG, axis=1) @ gamma
+            f_prev, g_prev = f, g
+        x = x_new
+    else:
+        message = (f"not converged after {max_iter} linear solves (last change "
+                   f"{history[-1]:.2e} > eps {eps:.1e})")
+    if not converged:
+        warnings.warn(f"nonlinear.solve ({method}): {message}", ConvergenceWarning, stacklevel=2)
+    log.info("nonlinear.solve(%s): %s", method, message)
+    return NonlinearResult(solution=sol, iterations=len(history),
+                           history=np.asarray(history), converged=converged,
+                           message=message, method=method)

@@ -1,0 +1,325 @@
+"""Typed results of a KED solve and their post-processing (deflections, section forces, stresses)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import elements as el
+from .assembly import FEModel
+from .errors import InputError
+from .kinematics import Motion
+
+__all__ = ["PeriodicResult", "Frequencies", "Timings", "LinkPeaks"]
+
+
+@dataclass(frozen=True)
+class Timings:
+    """Wall time [s] of the stages of a solve."""
+
+    kinematics: float
+    assembly: float
+    solve: float
+    total: float
+
+
+@dataclass(frozen=True)
+class Frequencies:
+    """Natural frequencies over the cycle at the (converged) periodic state.
+
+    Attributes
+    ----------
+    crank_angle : ndarray, shape (n,)
+        [rad].
+    modal : ndarray, shape (n, k)
+        Undamped modal eigenanalysis ``K phi = omega^2 M phi`` [Hz].
+    state_space : ndarray, shape (n, k)
+        ``|lambda| / 2 pi`` of the eigenvalues of the state matrix ``F`` with
+        damping and Coriolis coupling [Hz].
+    damping_ratio : ndarray, shape (n, k)
+        ``-Re(lambda) / |lambda|`` of the same eigenvalues.
+    """
+
+    crank_angle: np.ndarray
+    modal: np.ndarray
+    state_space: np.ndarray
+    damping_ratio: np.ndarray
+
+    @property
+    def fundamental(self) -> float:
+        """Cycle mean of the lowest state-space frequency [Hz]."""
+        return float(np.mean(self.state_space[:, 0]))
+
+    @property
+    def fundamental_modal(self) -> float:
+        """Cycle mean of the lowest modal frequency [Hz]."""
+        return float(np.mean(self.modal[:, 0]))
+
+
+@dataclass(frozen=True)
+class LinkPeaks:
+    """Peak values of one flexible link over the cycle."""
+
+    link: str
+    deflection: float            # max |mid-span deflection relative to the chord| [m]
+    deflection_angle: float      # crank angle of that peak [rad]
+    stress: float                # max |sigma| over the link and the cycle [Pa] (nan without c)
+    stress_angle: float          # [rad]
+    stress_station: float        # distance from joint a [m]
+
+
+@dataclass(frozen=True)
+class PeriodicResult:
+    """Periodic steady-state elastic response of a scene.
+
+    Attributes
+    ----------
+    t : ndarray, shape (n,)
+        Time nodes [s].
+    crank_angle : ndarray, shape (n,)
+        Angle of the first driven member [rad].
+    U, V : ndarray, shape (n, n_dof)
+        Elastic displacements [m, rad] and velocities at the time nodes.
+    dof_labels : tuple of str
+        Labels of the columns of ``U``.
+    floquet_multipliers : ndarray, shape (2 n_dof,)
+        Eigenvalues of the monodromy matrix (of the last linear solve).
+    stable : bool
+        All multipliers inside the unit circle.
+    converged : bool
+        The non-linear iteration met its tolerance (True for linear scenes).
+    iterations : int
+        Number of linear periodic solves (1 for linear scenes).
+    history : tuple of float
+        Eq. 21 relative changes per iteration (empty for linear scenes).
+    residual : float
+        Relative residual of the last block-cyclic system solved.
+    timings : Timings
+    """
+
+    scene: object
+    model: FEModel
+    motion: Motion
+    t: np.ndarray
+    crank_angle: np.ndarray
+    U: np.ndarray
+    V: np.ndarray
+    dof_labels: tuple[str, ...]
+    floquet_multipliers: np.ndarray
+    stable: bool
+    converged: bool
+    iterations: int
+    history: tuple[float, ...]
+    residual: float
+    timings: Timings
+    method: str = "condensation"
+    _cache: dict = field(default_factory=dict, repr=False, compare=False)
+
+    # ---------------------------------------------------------------- basics
+    @property
+    def n(self) -> int:
+        return int(self.t.size)
+
+    def dof(self, label: str) -> np.ndarray:
+        """Time history (n,) of one DOF by label."""
+        return self.U[:, self.model.dof_index(label)]
+
+    def _local(self, link: str):
+        """Local (link-frame) element DOFs (n, n_el_link, 6), total elastic incl. prescribed parts."""
+        key = ("local", link)
+        if key in self._cache:
+            return self._cache[key]
+        sl = self.model.link_elements(link)
+        gm = self.model.group_map("beam", self.motion)
+        Up = np.concatenate([self.U, np.zeros((self.n, 1))], axis=1)
+        cols = gm.cols[sl]
+        E = gm.E[:, sl]
+        x = (E @ Up[:, cols][..., None])[..., 0]
+        if gm.p is not None:
+            x = x + gm.p[:, sl]
+        th = self.motion.angle(link)
+        T = el.rotation_blocks(th)[:, None]
+        d = (T @ x[..., None])[..., 0]
+        self._cache[key] = d
+        return d
+
+    def stations(self, link: str) -> np.ndarray:
+        """Node positions (n_el + 1,) along a flexible link, from joint ``a`` [m]."""
+        lk = self._link(link)
+        return np.linspace(0.0, lk.length, lk.elements + 1)
+
+    def _link(self, link):
+        mech = self.model.mech
+        if link not in mech.links:
+            raise InputError(f"unknown link '{link}' (links: {', '.join(mech.links)})")
+        lk = mech.links[link]
+        if lk.rigid:
+            raise InputError(f"link '{link}' is rigid: it has no elastic deflection or stress")
+        return lk
+
+    # ------------------------------------------------------------ deflection
+    def deflection(self, link: str, xi: float = 0.5, relative_to: str = "frame") -> np.ndarray:
+        """Transverse elastic deflection at fraction ``xi`` of a link's length.
+
+        Parameters
+        ----------
+        link : str
+            Flexible link.
+        xi : float
+            Position as a fraction of the length from joint ``a`` (0..1).
+        relative_to : {"frame", "chord"}
+            ``"frame"``: in the link's rigid-body frame (+y is the ``a -> b``
+            direction turned +90 deg); ``"chord"``: relative to the chord
+            through the deflected end points.
+
+        Returns
+        -------
+        ndarray, shape (n,)
+            Deflection [m] over the cycle.
+        """
+        lk = self._link(link)
+        if not (0.0 <= xi <= 1.0) or not math.isfinite(xi):
+            raise InputError(f"deflection: xi must lie in [0, 1], got {xi!r}")
+        if relative_to not in ("frame", "chord"):
+            raise InputError(f"deflection: relative_to must be 'frame' or 'chord', got {relative_to!r}")
+        d = self._local(link)
+        ne = lk.elements
+        e = min(int(xi * ne), ne - 1)
+        xe = xi * ne - e
+        Le = lk.length / ne
+        N = el.shape_functions(Le, [xe])[0, 0]  # (2, 6)
+        v = d[:, e] @ N[1]
+        if relative_to == "chord":
+            va = d[:, 0, 1]
+            vb = d[:, -1, 4]
+            v = v - ((1 - xi) * va + xi * vb)
+        return v
+
+    # ------------------------------------------------------- section forces
+    def axial_force(self, link: str) -> np.ndarray:
+        """Elastic axial force per element (n, n_el) [N], tension positive.
+
+        ``EA (u2 - u1) / L_e``, plus the membrane term ``EA/(2 L_e) int v'^2``
+        when the scene includes ``geometric_nonlinearity``. Element midpoints
+        are at ``stations(link)[:-1] + L_e / 2``.
+        """
+        lk = self._link(link)
+        d = self._local(link)
+        Le = lk.length / lk.elements
+        EA = lk.material.E * lk.section.A
+        N = EA * (d[..., 3] - d[..., 0]) / Le
+        if "geometric_nonlinearity" in getattr(self.scene, "effects", ()):
+            G = el.geometric_matrix([Le])[0]
+            vb = d[..., el.V_DOFS]
+            N = N + EA / (2 * Le) * np.einsum("...i,ij,...j->...", vb, G, vb)
+        return N
+
+    def bending_moment(self, link: str) -> np.ndarray:
+        """Bending moment ``EI v''`` at the link's nodes (n, n_el + 1) [N m].
+
+        At interior nodes the mean of the two adjacent elements' end values.
+        """
+        lk = self._link(link)
+        d = self._local(link)
+        Le = lk.length / lk.elements
+        EI = lk.material.E * lk.section.I
+        B = el.shape_curvatures([Le], [0.0, 1.0])[0]  # (2, 6)
+        kap = np.einsum("tei,pi->tep", d, B)  # (n, n_el, 2)
+        M = np.zeros((self.n, lk.elements + 1))
+        M[:, :-1] += kap[..., 0]
+        M[:, 1:] += kap[..., 1]
+        M[:, 1:-1] *= 0.5
+        return EI * M
+
+    def stress(self, link: str) -> np.ndarray:
+        """Largest absolute normal stress ``|N|/A + |M| c / I`` at the nodes (n, n_el + 1) [Pa].
+
+        Needs the section's extreme-fibre distance ``c``.
+        """
+        lk = self._link(link)
+        sec = lk.section
+        if sec.c is None:
+            raise InputError(f"link '{link}': its section has no extreme-fibre distance c, "
+                             "so the bending stress is unknown (give Section(..., c=...))")
+        N = self.axial_force(link)
+        Nn = np.zeros((self.n, lk.elements + 1))
+        Nn[:, :-1] += N
+        Nn[:, 1:] += N
+        Nn[:, 1:-1] *= 0.5
+        return np.abs(Nn) / sec.A + np.abs(self.bending_moment(link)) * sec.c / sec.I
+
+    def joint_displacement(self, joint: str) -> np.ndarray:
+        """Elastic displacement (n, 2) [m] of a joint (global components)."""
+        forms = self._cache.get("forms")
+        if forms is None:
+            forms = self.model.point_forms(self.motion)
+            self._cache["forms"] = forms
+        if joint not in self.model.joint_point:
+            raise InputError(f"unknown joint '{joint}'")
+        cols, C, _c1, _c2, _mv = forms[self.model.joint_point[joint]]
+        if not cols:
+            return np.zeros((self.n, 2))
+        q = self.U[:, list(cols)]
+        return np.einsum("tij,tj->ti", np.broadcast_to(C, (self.n,) + C.shape[1:]), q)
+
+    def peaks(self) -> list[LinkPeaks]:
+        """Peak mid-span deflection and stress of every flexible link."""
+        out = []
+        for lk in self.model.mech.flexible_links:
+            w = self.deflection(lk.name, 0.5, relative_to="chord")
+            i = int(np.argmax(np.abs(w)))
+            if lk.section.c is not None:
+                s = self.stress(lk.name)
+                k, j = np.unravel_index(int(np.argmax(s)), s.shape)
+                smax, sang, sst = float(s[k, j]), float(self.crank_angle[k]), float(self.stations(lk.name)[j])
+            else:
+                smax = sang = sst = float("nan")
+            out.append(LinkPeaks(lk.name, float(abs(w[i])), float(self.crank_angle[i]), smax, sang, sst))
+        return out
+
+    # ----------------------------------------------------------- frequencies
+    def frequencies(self, n_modes: int = 4) -> Frequencies:
+        """Natural frequencies over the cycle at the converged periodic state.
+
+        The co-moving-frame matrices of the scene's effects (each link in its
+        own rotating frame), plus the tangent stiffness of the state-dependent
+        effects at the converged response. ``modal``: undamped eigenanalysis;
+        ``state_space``: eigenvalues of the state matrix with the damping and
+        the Coriolis coupling.
+        """
+        key = ("freq", n_modes)
+        if key in self._cache:
+            return self._cache[key]
+        from .effects import Assembler
+        from .modal import eig_frequencies
+        sc = self.scene
+        asm = Assembler(self.model, self.motion, sc.effects, damping=sc.damping, frame=True)
+        S = asm.system()
+        K = S.K
+        if sc.state_dependent:
+            glob = Assembler(self.model, self.motion, sc.effects, damping=sc.damping)
+            dK, _dQ = glob.state_terms(self.U, self.V)
+            if dK is not None:
+                K = K + dK
+        k = min(n_modes, self.model.n_dof)
+        fm = eig_frequencies(S.M, K, k)
+        N = self.model.n_dof
+        Minv = np.linalg.inv(S.M)
+        F = np.zeros((self.n, 2 * N, 2 * N))
+        F[:, :N, N:] = np.eye(N)
+        F[:, N:, :N] = -Minv @ K
+        F[:, N:, N:] = -Minv @ S.C
+        lam = np.linalg.eigvals(F)
+        # oscillatory eigenvalues (one of each conjugate pair), lowest |lambda| first
+        tol = 1e-9 * np.abs(lam).max(axis=1, keepdims=True)
+        mag = np.where(lam.imag > tol, np.abs(lam), np.inf)
+        order = np.argsort(mag, axis=1)[:, :k]
+        sel = np.take_along_axis(lam, order, axis=1)
+        ok = np.isfinite(np.take_along_axis(mag, order, axis=1))
+        fs = np.where(ok, np.abs(sel) / (2 * math.pi), np.nan)
+        zs = np.where(ok, -sel.real / np.where(ok, np.abs(sel), 1.0), np.nan)
+        out = Frequencies(self.crank_angle, fm, fs, zs)
+        self._cache[key] = out
+        return out

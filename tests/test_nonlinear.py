@@ -1,0 +1,124 @@
+"""Tests of kedfem.nonlinear: Duffing oscillators against harmonic balance."""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+from scipy.optimize import root
+
+from kedfem import nonlinear
+from kedfem.errors import ConvergenceWarning, InputError
+
+
+def harmonic_balance_duffing(m, c, k, k3, F, W, Nt=64):
+    """Periodic solution of m u'' + c u' + k u + k3 u^3 = F cos(W t) by spectral collocation.
+
+    Nt equispaced collocation points, derivatives by FFT (exact for the
+    trigonometric interpolant), Newton-type solve to 1e-14. Independent of kedfem.
+    """
+    T = 2 * math.pi / W
+    t = np.arange(Nt) * T / Nt
+    w = np.fft.fftfreq(Nt, d=T / Nt) * 2 * math.pi
+
+    def deriv(u, p):
+        return np.real(np.fft.ifft((1j * w) ** p * np.fft.fft(u)))
+
+    f = F * np.cos(W * t)
+
+    def residual(u):
+        return m * deriv(u, 2) + c * deriv(u, 1) + k * u + k3 * u ** 3 - f
+
+    u0 = np.real(F / (k - m * W ** 2 + 1j * c * W) * np.exp(1j * W * t))
+    sol = root(residual, u0, method="hybr", tol=1e-14)
+    assert np.abs(residual(sol.x)).max() < 1e-10
+    return t, sol.x
+
+
+def duffing_problem(m, c, k, k3, F, W, n):
+    T = 2 * math.pi / W
+    t = np.arange(n) * T / n
+    Q = (F * np.cos(W * t))[:, None]
+
+    def cubic_spring(U, V):  # secant stiffness: k3 u^2 * u = k3 u^3
+        return None, None, (k3 * U[:, 0] ** 2)[:, None, None], None
+    return np.eye(1) * m, np.eye(1) * c, np.eye(1) * k, Q, T, cubic_spring
+
+
+@pytest.mark.parametrize("method", ["fixed-point", "relaxation", "anderson"])
+def test_duffing_below_jump_vs_harmonic_balance(method):
+    p = dict(m=1.0, c=0.2, k=1.0, k3=0.5, F=0.3, W=0.8)
+    _, u_hb = harmonic_balance_duffing(**p)
+    n = 512
+    M, C, K, Q, T, terms = duffing_problem(**p, n=n)
+    res = nonlinear.solve(M, C, K, Q, T, terms, hold="magnus2", method=method, eps=1e-10)
+    assert res.converged and res.iterations == len(res.history)
+    assert res.history[-1] <= 1e-10
+    err = np.abs(res.solution.U[::n // 64, 0] - u_hb).max() / np.abs(u_hb).max()
+    assert err < 2e-5  # magnus2 discretization error at n = 512 (second order)
+    # the non-linearity matters: the linear response differs by far more
+    lin = nonlinear.solve(M, C, K, Q, T, lambda U, V: (None,) * 4, hold="magnus2")
+    assert np.abs(lin.solution.U[::n // 64, 0] - u_hb).max() / np.abs(u_hb).max() > 1e-2
+
+
+def test_anderson_converges_where_fixed_point_stalls():
+    p = dict(m=1.0, c=1.0, k=1.0, k3=2.0, F=2.0, W=0.3)  # k3 u^2 ~ 1.5 k at the peaks
+    _, u_hb = harmonic_balance_duffing(**p)
+    n = 512
+    M, C, K, Q, T, terms = duffing_problem(**p, n=n)
+    with pytest.warns(ConvergenceWarning, match="fixed-point"):
+        fp = nonlinear.solve(M, C, K, Q, T, terms, hold="magnus2", method="fixed-point",
+                             eps=1e-8, max_iter=40)
+    assert not fp.converged and fp.iterations == 40 and len(fp.history) == 40
+    assert min(fp.history[-10:]) > 1e-2            # it oscillates, it does not converge
+    aa = nonlinear.solve(M, C, K, Q, T, terms, hold="magnus2", method="anderson", eps=1e-8,
+                         max_iter=40)
+    assert aa.converged and aa.iterations < 30
+    assert aa.history[-1] < 1e-3 * aa.history[0]
+    # monotone-ish: every later window of 5 reaches a new low
+    lows = [min(aa.history[:i + 5]) for i in range(0, len(aa.history) - 5, 5)]
+    assert all(b < a for a, b in zip(lows, lows[1:]))
+    err = np.abs(aa.solution.U[::n // 64, 0] - u_hb).max() / np.abs(u_hb).max()
+    assert err < 1e-3
+
+
+def test_zero_response_converges_without_division_by_zero():
+    M, C, K, Q, T, terms = duffing_problem(1.0, 0.2, 1.0, 0.5, 0.0, 0.8, n=32)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        res = nonlinear.solve(M, C, K, Q, T, terms)
+    assert res.converged and res.iterations == 1
+    assert res.history.tolist() == [0.0]
+    assert np.all(res.solution.U == 0)
+
+
+def test_not_converged_reports_last_iterate_and_history():
+    M, C, K, Q, T, terms = duffing_problem(1.0, 0.2, 1.0, 0.5, 0.3, 0.8, n=64)
+    with pytest.warns(ConvergenceWarning, match="not converged after 3"):
+        res = nonlinear.solve(M, C, K, Q, T, terms, eps=1e-12, max_iter=3)
+    assert not res.converged and res.iterations == 3 and res.history.shape == (3,)
+    assert res.solution.U.shape == (64, 1) and "not converged" in res.message
+
+
+def test_divergence_is_detected():
+    M, C, K, Q, T, _ = duffing_problem(1.0, 0.2, 1.0, 0.0, 0.3, 0.8, n=64)
+
+    def runaway(U, V):  # a load growing with the response: G(x) ~ 100 x
+        return None, None, None, 100.0 * np.abs(U) + 1e-3
+    with pytest.warns(ConvergenceWarning, match="diverging"):
+        res = nonlinear.solve(M, C, K, Q, T, runaway, max_iter=50)
+    assert not res.converged and res.iterations < 50
+
+
+def test_nonlinear_input_validation():
+    M, C, K, Q, T, terms = duffing_problem(1.0, 0.2, 1.0, 0.5, 0.3, 0.8, n=16)
+    with pytest.raises(InputError, match="fixed-point, relaxation, anderson"):
+        nonlinear.solve(M, C, K, Q, T, terms, method="newton")
+    with pytest.raises(InputError, match="dK with shape"):
+        nonlinear.solve(M, C, K, Q, T, lambda U, V: (None, None, np.ones((3, 1, 1)), None))
+    with pytest.raises(InputError, match="non-finite dQ"):
+        nonlinear.solve(M, C, K, Q, T, lambda U, V: (None, None, None, U * np.nan))
+    with pytest.raises(InputError, match="relaxation"):
+        nonlinear.solve(M, C, K, Q, T, terms, method="relaxation", relaxation=1.5)
