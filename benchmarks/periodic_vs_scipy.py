@@ -281,8 +281,8 @@ def main(argv=None):
         sizes = [(13, 360), (40, 360)]
     import threadpoolctl
     info = [(d["internal_api"], d["num_threads"]) for d in threadpoolctl.threadpool_info()]
-    print(f"numpy {np.__version__}, scipy {sla.__name__.split('.')[0]} "
-          f"{__import__('scipy').__version__}, BLAS {info}, {os.cpu_count()} CPUs")
+    print(f"numpy {np.__version__}, scipy {__import__('scipy').__version__}, BLAS {info}, "
+          f"{os.cpu_count()} CPUs")
     print("time-varying chain, hold='zoh' for all methods (same discrete system); medians of "
           f"{args.repeats} repeats (1 for runs over 20 s)\n")
     hdr = (f"{'N':>4} {'n':>5} | {'kedfem s':>9} {'(256MB)':>8} | {'scipy s':>8} {'ratio':>6} | "

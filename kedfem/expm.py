@@ -242,6 +242,9 @@ def balance(A: np.ndarray, max_iter: int = 30) -> tuple[np.ndarray, np.ndarray]:
     return B.reshape(A.shape), d.reshape(batch + (m,))
 
 
+_balance = balance  # expm's argument ``balance`` shadows the function name there
+
+
 # --------------------------------------------------------------------------
 # Core scaling and squaring
 # --------------------------------------------------------------------------
@@ -406,15 +409,13 @@ def _exp_scaled_core(B: np.ndarray, delta: float, degree: int | str = "auto",
             for i in range(p):
                 P[i] *= (sc ** (2 * i + 2))[:, None, None]
             B *= sc[:, None, None]
-        # V = sum_even c_k A^k, U = A sum_odd c_k A^(k-1)
-        ce = np.array([c[2 * i + 2] for i in range(p)])
-        co = np.array([c[2 * i + 3] if 2 * i + 3 <= q else 0.0 for i in range(p)])
-        if p >= 1:
-            V = np.tensordot(ce, P, axes=(0, 0))
-            inner = np.tensordot(co, P, axes=(0, 0)) if np.any(co) else np.zeros_like(B)
-        else:
-            V = np.zeros_like(B)
-            inner = np.zeros_like(B)
+        # V = sum_even c_k A^k, U = A sum_odd c_k A^(k-1), accumulated in place
+        V = np.zeros_like(B)
+        inner = np.zeros_like(B)
+        for i in range(p):
+            _axpy(c[2 * i + 2], P[i], V)
+            if 2 * i + 3 <= q:
+                _axpy(c[2 * i + 3], P[i], inner)
         _add_diag(V, c[0])
         _add_diag(inner, c[1] if q >= 1 else 0.0)
         del P
@@ -584,7 +585,9 @@ def expm(A: np.ndarray, delta: float = 1e-15, balance: bool = True, *,
     Scaling exponent per matrix: ``j = max(0, 1 + floor(log2(eta / theta)))``,
     the paper's formula with ``||A||_inf`` replaced by the power-norm size
     ``eta`` of the balanced matrix and measured in units of ``theta``, the
-    largest scaled size for which the Pade backward-error bound is ``<= delta``.
+    largest scaled size for which the approximant's backward-error bound is
+    ``<= delta``. Triangular matrices get their diagonal and first superdiagonal
+    recomputed exactly at every squaring.
     """
     A_st, shape = _as_stack(A)
     if approximant not in APPROXIMANTS:
@@ -597,7 +600,7 @@ def expm(A: np.ndarray, delta: float = 1e-15, balance: bool = True, *,
             raise InputError(f"degree must be >= 1, got {degree}")
     pade_degree(delta)  # validates delta
     if balance and A_st.shape[-1] > 1:
-        Bst, d = balance_fn(A_st)
+        Bst, d = _balance(A_st)
     else:
         Bst, d = A_st, None
     E, info = _exp_scaled_core(Bst, float(delta), degree, approximant=approximant)
@@ -605,9 +608,6 @@ def expm(A: np.ndarray, delta: float = 1e-15, balance: bool = True, *,
         E = E * (d[:, :, None] / d[:, None, :])
     E = E.reshape(shape)
     return (E, info) if return_info else E
-
-
-balance_fn = balance  # the name ``balance`` is shadowed by expm's argument
 
 
 def taylor_expm(A: np.ndarray, tol: float = 1e-16, max_terms: int = 500) -> np.ndarray:

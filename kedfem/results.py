@@ -250,6 +250,60 @@ class PeriodicResult:
         Nn[:, 1:-1] *= 0.5
         return np.abs(Nn) / sec.A + np.abs(self.bending_moment(link)) * sec.c / sec.I
 
+    def link_geometry(self, link: str) -> np.ndarray:
+        """Rigid-body positions (n, n_el + 1, 2) [m] of a flexible link's nodes over the cycle."""
+        lk = self._link(link)
+        a, b = np.array(self.model.mech.joints[lk.a].at), np.array(self.model.mech.joints[lk.b].at)
+        e1 = (b - a) / lk.length
+        r, _v, _a = self.motion.point(link, lk.a, self.stations(link)[:, None] * e1[None, :])
+        return r
+
+    def link_displacement(self, link: str, U: np.ndarray | None = None) -> np.ndarray:
+        """Elastic displacement (n, n_el + 1, 2) [m] of a flexible link's nodes, global components.
+
+        Includes prescribed parts (clamped ends on pins, passive-link stretch).
+        With ``U`` (n, N) a different DOF history (e.g. a mode shape
+        broadcast over time) is mapped instead of the response.
+        """
+        lk = self._link(link)
+        sl = self.model.link_elements(link)
+        gm = self.model.group_map("beam", self.motion)
+        U = self.U if U is None else np.broadcast_to(np.asarray(U, float), self.U.shape)
+        Up = np.concatenate([U, np.zeros((self.n, 1))], axis=1)
+        x = (gm.E[:, sl] @ Up[:, gm.cols[sl]][..., None])[..., 0]
+        if gm.p is not None and U is self.U:
+            x = x + gm.p[:, sl]
+        out = np.empty((self.n, lk.elements + 1, 2))
+        out[:, :-1] = x[:, :, 0:2]
+        out[:, -1] = x[:, -1, 3:5]
+        return out
+
+    def mode_shapes(self, node: int = 0, n_modes: int = 4):
+        """Undamped mode shapes at one time node (co-moving-frame formulation).
+
+        Returns
+        -------
+        f : ndarray, shape (k,)
+            Frequencies [Hz].
+        phi : ndarray, shape (N, k)
+            Mass-normalised mode shapes (DOF order of ``dof_labels``).
+        """
+        from .effects import Assembler
+        from .modal import eig_frequencies
+        if not (0 <= node < self.n):
+            raise InputError(f"mode_shapes: node must lie in 0..{self.n - 1}, got {node}")
+        sc = self.scene
+        idx = np.array([node])
+        S = Assembler(self.model, self.motion, sc.effects, damping=sc.damping, frame=True).system(idx)
+        K = S.K
+        if sc.state_dependent:
+            glob = Assembler(self.model, self.motion, sc.effects, damping=sc.damping)
+            dK, _ = glob.state_terms(self.U[idx], self.V[idx], idx)
+            if dK is not None:
+                K = K + dK
+        f, phi = eig_frequencies(S.M, K, min(n_modes, self.model.n_dof), shapes=True)
+        return f[0], phi[0]
+
     def joint_displacement(self, joint: str) -> np.ndarray:
         """Elastic displacement (n, 2) [m] of a joint (global components)."""
         forms = self._cache.get("forms")

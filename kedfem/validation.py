@@ -30,8 +30,7 @@ from .scene import Scene
 __all__ = ["FrequencyCheck", "ResponseCheck", "ValidationReport", "modal_superposition", "validate",
            "table3", "MOULD_EFFECTS"]
 
-MOULD_EFFECTS = ("inertia", "coupling", "axial_stiffening", "geometric_nonlinearity", "gravity", "springs",
-                 "loads")
+from .defaults import MOULD_EFFECTS  # noqa: E402  (re-exported)
 
 
 @dataclass(frozen=True)
