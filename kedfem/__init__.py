@@ -17,3 +17,5 @@ from .results import Frequencies, LinkPeaks, PeriodicResult
 from .pipeline import solve
 from . import periodic, nonlinear
 from .expm import expm
+from .validation import ValidationReport, validate, table3
+from .defaults import default_scene

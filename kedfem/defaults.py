@@ -28,9 +28,9 @@ def default_scene(group: int = 1, steps: int = 180, **mechanism_params) -> Scene
     -------
     Scene
         All effects of :data:`MOULD_EFFECTS`, 2 % modal damping, ``foh`` hold,
-        Anderson-accelerated iteration to the paper's ``eps = 1e-6``.
+        the paper's fixed-point iteration (Newton-like with the tangent terms) to ``eps = 1e-6``.
     """
     from mechanisms import mould_oscillator
     mech = mould_oscillator.build(group=group, **mechanism_params)
     return Scene(mech, steps=steps, effects=MOULD_EFFECTS, damping=ModalDamping(0.02), hold="foh",
-                 eps=1e-6, nonlinear_method="anderson", name=f"mould oscillator, group {group}")
+                 eps=1e-6, nonlinear_method="fixed-point", name=f"mould oscillator, group {group}")

@@ -749,11 +749,14 @@ class Assembler:
 
         Returns
         -------
+        dC : ndarray, shape (n, N, N) or None
+            Tangent damping of the state-dependent effects (velocity-dependent friction).
         dK : ndarray, shape (n, N, N) or None
             Tangent stiffness of the state-dependent effects.
         dQ : ndarray, shape (n, N) or None
-            Matching load, ``-f_nl(x) + K_nl x`` so that a fixed point of the
-            linear solve satisfies the non-linear equations.
+            Matching load, ``-f_nl(x) + K_nl x + C_nl x'`` so that a fixed point of
+            the linear solve satisfies the non-linear equations (Newton's
+            linearisation about the trial response).
         """
         if idx is None:
             idx = np.arange(self.motion.n)
@@ -761,6 +764,7 @@ class Assembler:
         nt, N = len(idx), self.model.n_dof
         dK = np.zeros((nt, N, N))
         dQ = np.zeros((nt, N))
+        dC = None
         used = False
         if "geometric_nonlinearity" in self.has and self.model.beam.L.size:
             used = True
@@ -770,10 +774,11 @@ class Assembler:
             self._cubic_springs(mo, U, dK, dQ)
         if "loads" in self.has and any(f.follows == "total" for f in self.mech.frictions.values()):
             used = True
-            self._friction_total(mo, U, V, dQ)
+            dC = np.zeros((nt, N, N))
+            self._friction_total(mo, U, V, dC, dQ)
         if not used:
-            return None, None
-        return dK, dQ
+            return None, None, None
+        return dC, dK, dQ
 
     def _apply_state(self, gname, gm, Kx, Qx, dK, dQ):
         E = gm.E
@@ -834,19 +839,27 @@ class Assembler:
         Qx = (-fnl + knl * de)[..., None] * B
         self._apply_state("spring", gm, Kx, Qx, dK, dQ)
 
-    def _friction_total(self, mo, U, V, dQ):
+    def _friction_total(self, mo, U, V, dC, dQ):
+        """Friction on the total velocity: force and its tangent damping ``c_t n n^T``."""
         g = self.model.groups["load"]
         items = g.meta["items"]
         x, xd, _xq, gm = self.element_state("load", mo, U, V)
+        Vp = np.concatenate([V, np.zeros((V.shape[0], 1))], axis=1)
+        xdq = (gm.E @ Vp[:, gm.cols][..., None])[..., 0]  # the part of x' carried by q'
         Qx = np.zeros(x.shape)
+        Cx = np.zeros(x.shape + (x.shape[-1],))
         for k, it in enumerate(items):
             if getattr(it, "follows", None) != "total":
                 continue
             j = mo.joint_names.index(it.joint)
             n = np.asarray(it.axis)
             vrel = (mo.v[:, j] + xd[:, k]) @ n - it.reference_speed
-            Qx[:, k] = -(it.force * np.tanh(vrel / it.smoothing))[:, None] * n
-        self._apply_state("load", gm, None, Qx, None, dQ)
+            th = np.tanh(vrel / it.smoothing)
+            ct = it.force / it.smoothing * (1.0 - th**2)  # d(force)/d(speed) >= 0
+            Cx[:, k] = ct[:, None, None] * np.outer(n, n)
+            # Newton: F(v_i) + c_t (v - v_i) -> load -F(v_i) + c_t (q'-part of v_i)
+            Qx[:, k] = (-(it.force * th) + ct * (xdq[:, k] @ n))[:, None] * n
+        self._apply_state("load", gm, Cx, Qx, dC, dQ)
 
 
 def _cholesky(M, model):

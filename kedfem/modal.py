@@ -215,8 +215,10 @@ def global_matrices(mechanism: Mechanism, crank_angle: float = 0.0, effects=(),
     motion = _motion_at(mechanism, crank_angle)
     asm = Assembler(model, motion, eff, damping=damping)
     M, C, K, Q = asm.sparse_system(0)
-    dK, dQ = asm.state_terms(np.zeros((1, model.n_dof)), np.zeros((1, model.n_dof)))
+    dC, dK, dQ = asm.state_terms(np.zeros((1, model.n_dof)), np.zeros((1, model.n_dof)))
     if dK is not None:
         K = K + sp.csr_matrix(dK[0])
         Q = Q + dQ[0]
+    if dC is not None:
+        C = C + sp.csr_matrix(dC[0])
     return GlobalMatrices(M, C, K, Q, tuple(model.dof_labels), float(motion.crank_angle[0]))

@@ -95,7 +95,8 @@ def _add(base, extra, name, shape, it):
 
 def solve(M, C, K, Q, period: float, state_terms: StateTerms, hold: str = "foh", *,
           eps: float = 1e-6, max_iter: int = 50, method: str = "fixed-point",
-          relaxation: float = 0.5, depth: int = 5, **solver_kwargs) -> NonlinearResult:
+          relaxation: float = 0.5, depth: int = 5, linearization: str = "secant",
+          **solver_kwargs) -> NonlinearResult:
     """Iterate the linear periodic solve until the state-dependent terms settle.
 
     Parameters
@@ -122,6 +123,17 @@ def solve(M, C, K, Q, period: float, state_terms: StateTerms, hold: str = "foh",
         Weight ``w`` of the relaxation method, ``0 < w <= 1``.
     depth : int
         Number of previous differences Anderson acceleration keeps.
+    linearization : {"secant", "tangent"}
+        What ``state_terms`` returns. ``"secant"`` (the paper's form): parts of
+        the equation's coefficients, ``K_N(U)`` etc., sampled at the nodes and
+        interpolated by the hold like ``K`` and ``Q``. ``"tangent"``: a
+        linearisation about the trial response at each node (tangent
+        ``dC, dK`` with the matching load ``dQ = -f_nl + K_nl U + C_nl V``),
+        held over the element that starts at the node (``Kz, Cz, Qz`` of
+        :func:`kedfem.periodic.solve`) so that it cancels at the node: the
+        fixed point then solves the non-linear equations, the plain iteration
+        is Newton's method, and the error of the linearisation over an
+        element is ``O(dt^2)``.
     **solver_kwargs
         Passed on to :func:`kedfem.periodic.solve` (``delta``, ``memory_budget``...).
 
@@ -134,6 +146,8 @@ def solve(M, C, K, Q, period: float, state_terms: StateTerms, hold: str = "foh",
     """
     if method not in NONLINEAR_METHODS:
         raise InputError(f"unknown method {method!r}; valid methods: {', '.join(NONLINEAR_METHODS)}")
+    if linearization not in ("secant", "tangent"):
+        raise InputError(f"linearization must be 'secant' or 'tangent', got {linearization!r}")
     if not callable(state_terms):
         raise InputError("state_terms must be callable: state_terms(U, V) -> (dM, dC, dK, dQ)")
     if not (isinstance(max_iter, (int, np.integer)) and max_iter >= 1):
@@ -157,10 +171,18 @@ def solve(M, C, K, Q, period: float, state_terms: StateTerms, hold: str = "foh",
     def G(U, V, it):
         dM, dC, dK, dQ = state_terms(U, V)
         Mi = _add(M, dM, "dM", (n, N, N), it)
-        Ci = _add(C, dC, "dC", (n, N, N), it)
-        Ki = _add(K, dK, "dK", (n, N, N), it)
-        Qi = _add(Q, dQ, "dQ", (n, N), it)
-        return periodic.solve(Mi, Ci, Ki, Qi, period, hold=hold, **solver_kwargs)
+        if hold == "zoh" or linearization == "secant":
+            Ci = _add(C, dC, "dC", (n, N, N), it)
+            Ki = _add(K, dK, "dK", (n, N, N), it)
+            Qi = _add(Q, dQ, "dQ", (n, N), it)
+            return periodic.solve(Mi, Ci, Ki, Qi, period, hold=hold, **solver_kwargs)
+        # foh / magnus2: the state-dependent stiffness and load are a linearisation
+        # about node k; held over element k they cancel at the node (Newton-like
+        # convergence) -- interpolating the load but not the stiffness would not.
+        Kz = _add(np.zeros((n, N, N)), dK, "dK", (n, N, N), it) if dK is not None else None
+        Qz = _add(np.zeros((n, N)), dQ, "dQ", (n, N), it) if dQ is not None else None
+        Cz = _add(np.zeros((n, N, N)), dC, "dC", (n, N, N), it) if dC is not None else None
+        return periodic.solve(Mi, C, K, Q, period, hold=hold, Kz=Kz, Qz=Qz, Cz=Cz, **solver_kwargs)
 
     def pack(U, V):
         return np.concatenate([U.ravel(), (V * vscale).ravel()])

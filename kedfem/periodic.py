@@ -351,8 +351,10 @@ def _state_matrix(S, D, dtype=float):
 class _Elements:
     """Computes (A_k, b_k) for chunks of elements of one discretized period."""
 
-    def __init__(self, Ms, Cs, Ks, Qs, n, N, period, hold, delta, chunk, approximant, workers):
+    def __init__(self, Ms, Cs, Ks, Qs, n, N, period, hold, delta, chunk, approximant, workers,
+                 Kzs=None, Qzs=None, Czs=None):
         self.Ms, self.Cs, self.Ks, self.Qs = Ms, Cs, Ks, Qs
+        self.Kzs, self.Qzs, self.Czs = Kzs, Qzs, Czs
         self.n, self.N, self.m = n, N, 2 * N
         self.period, self.dt, self.hold = period, period / n, hold
         self.delta = delta
@@ -361,7 +363,7 @@ class _Elements:
         self.approximant = approximant
         self.workers = workers
         self.chunk = chunk
-        self.invariant = Ms.const and Cs.const and Ks.const
+        self.invariant = Ms.const and Cs.const and Ks.const and Kzs is None and Czs is None
         self.n_exponentials = 0
         self.degree = 0
         self.max_squarings = 0
@@ -418,7 +420,8 @@ class _Elements:
         Q = self.Qs.get(nodes, N)
         if self.invariant:
             A, G0, G1 = self._invariant_ops()
-            bvec = Q[:-1] @ G0.T
+            Qa = Q[:-1] if self.Qzs is None else Q[:-1] + self.Qzs.get(nodes[:-1], N)
+            bvec = Qa @ G0.T
             if self.hold != "zoh":
                 bvec = bvec + (Q[1:] - Q[:-1]) @ G1.T
             return A, bvec
@@ -428,6 +431,9 @@ class _Elements:
         Ck = self.Cs.get(sel, N)
         Kk = self.Ks.get(sel, N)
         Qk = Q if need_next else Q[:-1]
+        Kz = self.Kzs.get(nodes[:-1], N) if self.Kzs is not None else None
+        Qz = self.Qzs.get(nodes[:-1], N) if self.Qzs is not None else None
+        Cz = self.Czs.get(nodes[:-1], N) if self.Czs is not None else None
         A = np.empty((L, m, m))
         bvec = np.empty((L, m))
         parts = _split(L, self.workers)
@@ -444,9 +450,26 @@ class _Elements:
                 S = S[:-1] if S.ndim == 3 else S
                 D = D[:-1] if D.ndim == 3 else D
             S = np.broadcast_to(S, (hi - lo, N, N))
-            delta = self._delta(S)
             f0 = f[:hi - lo]
             f1 = f[1:hi - lo + 1] if need_next else None
+            if Kz is not None or Qz is not None or Cz is not None:
+                # terms linearised about node k, held over element k (see solve)
+                Mlo = part[0] if part[0].ndim == 2 else part[0][:hi - lo]
+                Mhi = None
+                if need_next and Qz is not None:
+                    Mhi = part[0] if part[0].ndim == 2 else part[0][1:hi - lo + 1]
+                if Kz is not None:
+                    S = S + np.linalg.solve(np.broadcast_to(Mlo, (hi - lo, N, N)), Kz[lo:hi])
+                if Cz is not None:
+                    D = np.broadcast_to(D, (hi - lo, N, N)) + np.linalg.solve(
+                        np.broadcast_to(Mlo, (hi - lo, N, N)), Cz[lo:hi])
+                if Qz is not None:
+                    f0 = f0 + np.linalg.solve(np.broadcast_to(Mlo, (hi - lo, N, N)),
+                                              Qz[lo:hi, :, None])[..., 0]
+                    if f1 is not None:
+                        f1 = f1 + np.linalg.solve(np.broadcast_to(Mhi, (hi - lo, N, N)),
+                                                  Qz[lo:hi, :, None])[..., 0]
+            delta = self._delta(S)
             Ak, bk, infos[i] = second_order_transition(
                 S, D, self.dt, f0, f1, delta=delta, approximant=self.approximant,
                 return_info=True)
@@ -601,7 +624,7 @@ def _resolve_shapes(Ms, Cs, Ks, Qs, n):
 def solve(M, C, K, Q, period: float, hold: str = "zoh", *, n: int | None = None,
           delta: float | None = None, method: str = "auto", approximant: str = "taylor",
           memory_budget: float = 256e6, max_condition: float = MAX_CONDITION,
-          workers: int | None = None) -> PeriodicSolution:
+          workers: int | None = None, Kz=None, Qz=None, Cz=None) -> PeriodicSolution:
     """Periodic steady state of ``M u'' + C u' + K u = Q`` by the state-space method.
 
     Parameters
@@ -649,6 +672,17 @@ def solve(M, C, K, Q, period: float, hold: str = "zoh", *, n: int | None = None,
         while they run BLAS is limited to one thread per worker (threadpoolctl).
         Callables are always evaluated from the calling thread.
 
+    Kz, Qz, Cz : ndarray, shape (n, N, N), (n, N) and (n, N, N), optional
+        Stiffness, load and damping of a linearisation about each time node,
+        held constant over the element that starts at the node whatever the
+        hold (``K_k + Kz_k``, ``C_k + Cz_k`` and ``Q(t) + Qz_k`` on
+        ``[t_k, t_k+1]``). The non-linear
+        iteration passes its state-dependent terms here: the tangent stiffness
+        and the load ``-f_nl + K_nl x`` linearised at node ``k`` then cancel
+        exactly at the node, so that a fixed point solves the non-linear
+        equations and the iteration converges as Newton's method would, while
+        the error of the linearisation over the element stays ``O(dt^2)``.
+
     Returns
     -------
     PeriodicSolution
@@ -689,9 +723,22 @@ def solve(M, C, K, Q, period: float, hold: str = "zoh", *, n: int | None = None,
     Ks = _Source("K", K, True)
     Qs = _Source("Q", Q, False)
     n, N = _resolve_shapes(Ms, Cs, Ks, Qs, n)
+    Kzs = Qzs = Czs = None
+    if Cz is not None:
+        Czs = _Source("Cz", Cz, True)
+        if Czs.const or Czs.n != n or Czs.N != N:
+            raise InputError(f"Cz must be sampled with shape ({n}, {N}, {N})")
+    if Kz is not None:
+        Kzs = _Source("Kz", Kz, True)
+        if Kzs.const or Kzs.n != n or Kzs.N != N:
+            raise InputError(f"Kz must be sampled with shape ({n}, {N}, {N})")
+    if Qz is not None:
+        Qzs = _Source("Qz", Qz, False)
+        if Qzs.n != n or Qzs.N != N:
+            raise InputError(f"Qz must have shape ({n}, {N})")
     m = 2 * N
     ma = m + (1 if hold == "zoh" else 2)
-    invariant = Ms.const and Cs.const and Ks.const
+    invariant = Ms.const and Cs.const and Ks.const and Kzs is None and Czs is None
     # elements per chunk: the batched exponential's work memory fits half the budget
     if invariant:  # only O(m) per element: b_k and the scan partial sums
         chunk = max(1, min(n, int(memory_budget // (8 * m * 8))))
@@ -711,7 +758,8 @@ def solve(M, C, K, Q, period: float, hold: str = "zoh", *, n: int | None = None,
         workers = default_workers()
     elif not (isinstance(workers, (int, np.integer)) and workers >= 1):
         raise InputError(f"workers must be a positive integer or None, got {workers!r}")
-    elems = _Elements(Ms, Cs, Ks, Qs, n, N, period, hold, delta, chunk, approximant, int(workers))
+    elems = _Elements(Ms, Cs, Ks, Qs, n, N, period, hold, delta, chunk, approximant, int(workers),
+                      Kzs, Qzs, Czs)
     log.debug("periodic.solve: n=%d N=%d hold=%s delta=%s chunk=%d keep=%s segment=%d",
               n, N, hold, delta, chunk, keep, seg)
 

@@ -115,14 +115,14 @@ def solve(scene: Scene) -> PeriodicResult:
         t2 = time.perf_counter()
         if state:
             def state_terms(U, V):
-                dK, dQ = asm.state_terms(U, V)
-                return None, None, dK, dQ
+                dC, dK, dQ = asm.state_terms(U, V)
+                return None, dC, dK, dQ
 
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always", ConvergenceWarning)
                 nl = nonlinear.solve(terms.M, terms.C, terms.K, terms.Q, motion.period, state_terms,
                                      hold=scene.hold, eps=scene.eps, max_iter=scene.max_iter,
-                                     method=scene.nonlinear_method, **kw)
+                                     method=scene.nonlinear_method, linearization="tangent", **kw)
             for w in caught:
                 warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
             sol = nl.solution

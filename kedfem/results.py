@@ -298,7 +298,7 @@ class PeriodicResult:
         K = S.K
         if sc.state_dependent:
             glob = Assembler(self.model, self.motion, sc.effects, damping=sc.damping)
-            dK, _ = glob.state_terms(self.U[idx], self.V[idx], idx)
+            _dC, dK, _ = glob.state_terms(self.U[idx], self.V[idx], idx)
             if dK is not None:
                 K = K + dK
         f, phi = eig_frequencies(S.M, K, min(n_modes, self.model.n_dof), shapes=True)
@@ -354,7 +354,7 @@ class PeriodicResult:
         K = S.K
         if sc.state_dependent:
             glob = Assembler(self.model, self.motion, sc.effects, damping=sc.damping)
-            dK, _dQ = glob.state_terms(self.U, self.V)
+            _dC, dK, _dQ = glob.state_terms(self.U, self.V)
             if dK is not None:
                 K = K + dK
         k = min(n_modes, self.model.n_dof)

@@ -66,7 +66,7 @@ class Scene:
     speed: float | None = None
     eps: float = 1e-6
     max_iter: int = 50
-    nonlinear_method: str = "anderson"
+    nonlinear_method: str = "fixed-point"
     delta: float | None = None
     name: str = ""
     _mech: Mechanism = field(init=False, repr=False, compare=False)

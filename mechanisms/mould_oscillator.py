@@ -89,7 +89,8 @@ DEFAULTS = dict(
     eccentric_mass=450.0,           # eccentric shaft share of one planar crank [kg]
     eccentric_inertia=45.0,         # shaft + gear + motor share about the shaft axis [kg m^2]
     transmission_stiffness=2.0e6,   # torsional stiffness of each transmission [N m/rad]
-    leaf_length=0.95,               # free length of a leaf-spring pack [m] (calibrated)
+    leaf_length=0.99146,            # free length of a leaf-spring pack [m]: calibrated to 17.33 Hz
+                                    # (benchmarks/calibrate_mould.py)
     leaf_thickness=3.0e-3,          # one spring-steel leaf [m]
     leaf_width=0.25,                # [m]
     leaf_count=10,                  # leaves per pack
