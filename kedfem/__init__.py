@@ -1,7 +1,8 @@
 """kedfem: finite-element Kineto-ElastoDynamics of planar elastic linkages."""
 
 from .errors import (ConvergenceWarning, InputError, InstabilityWarning, KedError,
-                     KinematicsError, MobilityError, ResonanceError, SingularMassError)
+                     KinematicsError, MobilityError, OptionalDependencyError, ResonanceError,
+                     SingularMassError)
 from .materials import Material, Section
 from .mechanism import Mechanism
 from .kinematics import Motion, kinematics, kinematics_at, static_motion
@@ -19,3 +20,4 @@ from . import periodic, nonlinear
 from .expm import expm
 from .validation import ValidationReport, validate, table3
 from .defaults import default_scene
+from .scenefile import SceneFileError, load_scene, scene_from_dict

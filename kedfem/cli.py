@@ -1,62 +1,627 @@
-"""Command-line interface: ``kedfem run``, ``kedfem list``."""
+"""Command-line interface of kedfem.
+
+``kedfem run [SCENE.toml | MECHANISM]``
+    Solve a scene (default: the built-in mould-oscillator scene), print a
+    summary table and write CSV, NPZ, plots and a VTK series.
+``kedfem validate``
+    The paper's Table 3 and a modal-superposition check.
+``kedfem sweep [SCENE.toml | MECHANISM] --param KEY=VALUES ...``
+    Parameter sweep on a process pool or a Dask cluster.
+``kedfem export [SCENE.toml | MECHANISM] [--render]``
+    VTK/PVD series (and mode shapes) for ParaView, optionally a PNG render.
+``kedfem list``
+    Mechanisms with their parameters, effects with their descriptions.
+
+The library logs; this module prints. A :class:`~kedfem.errors.KedError`
+(bad input, a linkage that cannot move, a resonance...) prints one line
+``kedfem: error: ...`` on stderr and exits with status 2, without a traceback.
+"""
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import dataclasses
+import inspect
+import logging
+import math
+import os
+import re
 import sys
 import time
+import warnings
+from pathlib import Path
 
 from . import __version__
+from .errors import InputError, KedError
+
+__all__ = ["main", "build_parser"]
+
+log = logging.getLogger(__name__)
+
+COMMANDS = ("run", "validate", "sweep", "export", "list")
+EXIT_ERROR = 2
+EXIT_STRICT = 3
+
+
+# ------------------------------------------------------------ arg helpers
+def _steps_arg(s: str) -> int:
+    from .scenefile import MAX_STEPS
+    try:
+        v = int(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer, got {s!r}") from None
+    if not 3 <= v <= MAX_STEPS:
+        raise argparse.ArgumentTypeError(f"must lie in 3 .. {MAX_STEPS} (see kedfem.scenefile.MAX_STEPS), got {v}")
+    return v
+
+
+def _speed_arg(s: str) -> float:
+    try:
+        v = float(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number [rev/min], got {s!r}") from None
+    if not math.isfinite(v) or v == 0:
+        raise argparse.ArgumentTypeError(f"must be a finite nonzero speed [rev/min], got {s!r}")
+    return v
+
+
+def _positive_float(s: str) -> float:
+    try:
+        v = float(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number, got {s!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {s!r}")
+    return v
+
+
+def _int_range(lo: int, hi: int):
+    def f(s: str) -> int:
+        try:
+            v = int(s)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be an integer, got {s!r}") from None
+        if not lo <= v <= hi:
+            raise argparse.ArgumentTypeError(f"must lie in {lo} .. {hi}, got {v}")
+        return v
+    return f
+
+
+def _effects_arg(s: str):
+    s = s.strip()
+    if s == "all":
+        return "all"
+    return [e.strip() for e in s.split(",") if e.strip()]
+
+
+def _overrides(args) -> dict:
+    o = {}
+    if getattr(args, "steps", None) is not None:
+        o["steps"] = args.steps
+    if getattr(args, "speed", None) is not None:
+        o["speed_rpm"] = args.speed
+    if getattr(args, "hold", None):
+        o["hold"] = args.hold
+    if getattr(args, "effects", None) is not None:
+        o["effects"] = args.effects
+    return o
+
+
+@dataclasses.dataclass(frozen=True)
+class _Loaded:
+    scene: object
+    outputs: object
+    data: dict          # scene dictionary (for sweeps)
+    sweep: dict
+    source: str
+
+
+def _load(target: str | None, overrides: dict) -> _Loaded:
+    """Scene from a file, a mechanism name or the built-in default, with command-line overrides."""
+    import mechanisms
+
+    from . import scenefile as sf
+    from .defaults import default_scene
+    from .scenefile import RPM, Outputs
+    if target is None:
+        scene = default_scene()
+        kw = {}
+        if "steps" in overrides:
+            kw["steps"] = overrides["steps"]
+        if "speed_rpm" in overrides:
+            kw["speed"] = overrides["speed_rpm"] * RPM
+        if "hold" in overrides:
+            kw["hold"] = overrides["hold"]
+        if "effects" in overrides:
+            from .effects import EFFECTS
+            kw["effects"] = tuple(EFFECTS) if overrides["effects"] == "all" else tuple(overrides["effects"])
+        if kw:
+            scene = dataclasses.replace(scene, **kw)
+        data = sf.with_overrides({"mechanism": {"name": "mould_oscillator"}, "name": scene.name}, overrides)
+        return _Loaded(scene, Outputs(), data, {}, "built-in default scene")
+    p = Path(target)
+    if p.suffix.lower() == ".toml" or p.is_file():
+        spec = sf.load_spec(p, overrides)
+        return _Loaded(spec.scene, spec.outputs, sf.with_overrides(spec.data, overrides), spec.sweep, str(p))
+    key = target.replace("-", "_")
+    if key not in mechanisms.available():
+        raise InputError(f"no scene file or mechanism named {target!r}{sf._suggest(key, mechanisms.available())}; "
+                         f"mechanisms: {', '.join(mechanisms.available())} (kedfem list)")
+    data = sf.with_overrides({"mechanism": {"name": key}}, overrides)
+    spec = sf.parse_scene(data, source=f"mechanism {key}", overridden=overrides)
+    return _Loaded(spec.scene, spec.outputs, data, {}, f"mechanism {key} (preset scene)")
+
+
+@contextlib.contextmanager
+def _report_warnings():
+    """Print warnings raised inside as one line each on stderr (once per message)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            yield caught
+        finally:
+            seen = set()
+            for w in caught:
+                msg = f"{w.category.__name__}: {w.message}"
+                if msg not in seen:
+                    seen.add(msg)
+                    print(f"kedfem: warning: {msg}", file=sys.stderr)
+
+
+def _rel(p: Path, base: Path) -> str:
+    try:
+        return str(Path(p).relative_to(base))
+    except ValueError:
+        return str(p)
+
+
+def _solve(scene):
+    from .pipeline import solve
+    with _report_warnings():
+        return solve(scene)
+
+
+# ------------------------------------------------------------------- run
+@dataclasses.dataclass
+class _Stage:
+    times: dict = dataclasses.field(default_factory=dict)
+
+    @contextlib.contextmanager
+    def __call__(self, name):
+        t = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.times[name] = self.times.get(name, 0.0) + time.perf_counter() - t
+
+
+def _fmt_angle(a: float) -> str:
+    return f"{math.degrees(a) % 360:7.1f}" if math.isfinite(a) else "      -"
+
+
+def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_dir: Path | None,
+                   source: str, scene_time: float) -> str:
+    """The summary table printed by ``kedfem run``."""
+    import numpy as np
+
+    from .scenefile import scene_summary
+    sc = res.scene
+    info = scene_summary(sc)
+    L = []
+    L.append(f"kedfem {__version__}: {sc.name or sc.mech.name}  [{source}]")
+    L.append(f"  mechanism   {info['mechanism']}: {len(sc.mech.links)} links, "
+             f"{len(sc.mech.flexible_links)} flexible, {res.model.n_dof} elastic DOFs")
+    L.append(f"  speed       {info['speed']}")
+    L.append(f"  solver      {info['steps']} time nodes, hold {info['hold']}, "
+             f"{'iterated (' + sc.nonlinear_method + ')' if sc.state_dependent else 'linear'}, method {res.method}")
+    L.append(f"  effects     {info['effects']}")
+    L.append(f"  damping     {info['damping']}")
+    L.append("")
+    L.append("natural frequencies over the cycle [Hz]      mean       min       max")
+    for j in range(freqs.modal.shape[1]):
+        for kind, arr in (("state-space", freqs.state_space[:, j]), ("modal", freqs.modal[:, j])):
+            a = arr[np.isfinite(arr)]
+            if a.size:
+                L.append(f"  mode {j + 1}  {kind:<29s} {a.mean():9.3f} {a.min():9.3f} {a.max():9.3f}")
+            else:
+                L.append(f"  mode {j + 1}  {kind:<29s}         -         -         -")
+    L.append("")
+    if peaks:
+        L.append("peak response per flexible link")
+        L.append(f"  {'link':<16s} {'deflection [m]':>14s} {'at [deg]':>8s} {'stress [Pa]':>12s} "
+                 f"{'at [deg]':>8s} {'station [m]':>11s}")
+        for p in peaks:
+            st = f"{p.stress:12.4e}" if math.isfinite(p.stress) else f"{'n/a (no c)':>12s}"
+            ss = f"{p.stress_station:11.4f}" if math.isfinite(p.stress_station) else f"{'-':>11s}"
+            L.append(f"  {p.link:<16s} {p.deflection:14.4e} {_fmt_angle(p.deflection_angle):>8s} {st} "
+                     f"{_fmt_angle(p.stress_angle):>8s} {ss}")
+        L.append("  (deflection: mid-span, relative to the chord; stress: max |N|/A + |M| c/I; angles: crank)")
+    else:
+        L.append("peak response: no flexible links")
+    L.append("")
+    mu = np.abs(np.asarray(res.floquet_multipliers))
+    rho = float(mu.max()) if mu.size else float("nan")
+    L.append(f"Floquet stability   spectral radius {rho:.6f} -> {'stable' if res.stable else 'UNSTABLE'}")
+    if sc.state_dependent:
+        last = f", last change {res.history[-1]:.2e}" if res.history else ""
+        L.append(f"iteration           {res.iterations} linear solves, converged: "
+                 f"{'yes' if res.converged else 'NO'} (eps {sc.eps:g}{last})")
+    else:
+        L.append("iteration           none needed (linear scene): 1 periodic solve")
+    L.append(f"residual            {res.residual:.3e} (relative, block-cyclic system)")
+    tm = res.timings
+    parts = [f"kinematics {tm.kinematics:.2f}", f"assembly {tm.assembly:.2f}", f"solve {tm.solve:.2f}"]
+    parts += [f"{k} {v:.2f}" for k, v in stages.items()]
+    L.append(f"wall time [s]       {', '.join(parts)}; total {scene_time:.2f}")
+    if files:
+        L.append(f"files in {out_dir}/")
+        for f in files:
+            L.append(f"  {_rel(f, out_dir)}")
+    else:
+        L.append("files               none written")
+    return "\n".join(L)
+
+
+def _write_outputs(res, freqs, peaks, out_dir: Path, stage: _Stage, *, plots: bool, csv: bool,
+                   npz: bool, vtk: bool, render: bool, modes: int, scale, every: int, dofs) -> list[Path]:
+    from . import export
+    files: list[Path] = []
+    out_dir.mkdir(parents=True, exist_ok=True)
+    if csv:
+        with stage("csv"):
+            files.append(export.write_response_csv(res, out_dir / "response.csv"))
+            files.append(export.write_peaks_csv(res, out_dir / "peaks.csv", peaks))
+            files.append(export.write_frequencies_csv(freqs, out_dir / "frequencies.csv"))
+    if npz:
+        with stage("npz"):
+            files.append(export.write_npz(res, out_dir / "result.npz", freqs))
+    if plots:
+        from . import plots as pl
+        with stage("plots"):
+            files.extend(pl.all_plots(res, out_dir, freqs, dofs or None))
+    series = None
+    if vtk or render:
+        with stage("vtk"):
+            series = export.write_vtk_series(res, out_dir, scale=scale, every=every)
+            files.append(series.pvd)
+            if modes:
+                files.append(export.write_mode_shapes(res, out_dir, n_modes=modes).pvd)
+    if render:
+        from . import render as rd
+        with stage("render"):
+            files.append(rd.render_series(series, out_dir / "deformed.png"))
+    return files
+
+
+def _cmd_run(args) -> int:
+    t0 = time.perf_counter()
+    ld = _load(args.scene, _overrides(args))
+    o = ld.outputs
+    out_dir = Path(args.out) if args.out else o.dir
+    sc = ld.scene
+    print(f"kedfem {__version__}: solving {sc.name or sc.mech.name} ({sc.steps} time nodes) ...", flush=True)
+    stage = _Stage()
+    res = _solve(sc)
+    with stage("frequencies"):
+        with _report_warnings():
+            freqs = res.frequencies(args.n_modes)
+    with stage("peaks"):
+        peaks = res.peaks()
+    files = _write_outputs(
+        res, freqs, peaks, out_dir, stage, plots=o.plots and not args.no_plots,
+        csv=o.csv and not args.no_csv, npz=o.npz and not args.no_npz, vtk=o.vtk and not args.no_vtk,
+        render=(o.render or args.render) and not args.no_render,
+        modes=o.modes if args.modes is None else args.modes, scale=args.scale if args.scale else o.scale,
+        every=args.every or o.every, dofs=tuple(args.dofs.split(",")) if args.dofs else o.dofs)
+    total = time.perf_counter() - t0
+    text = format_summary(res, freqs, peaks, stages=stage.times, files=files, out_dir=out_dir, source=ld.source,
+                          scene_time=total)
+    if files:
+        from .export import atomic_path
+        with atomic_path(out_dir / "summary.txt") as tmp:
+            tmp.write_text(text + "\n")
+        text += "\n  summary.txt"
+    print()
+    print(text)
+    if args.strict and not (res.converged and res.stable):
+        print("kedfem: --strict: the response did not converge or is unstable", file=sys.stderr)
+        return EXIT_STRICT
+    return 0
+
+
+# -------------------------------------------------------------- validate
+def _cmd_validate(args) -> int:
+    import mechanisms
+
+    from .effects import Rayleigh
+    from .scene import Scene
+    from .validation import table3, validate
+    ok = True
+    t0 = time.perf_counter()
+    if not args.skip_table3:
+        print(f"Table 3: fundamental frequency of the mould oscillator, crank groups 1-4 "
+              f"({args.steps} time nodes; state-space = with damping and coupling, modal = undamped)")
+        with _report_warnings():
+            rep = table3(steps=args.steps)
+        print(rep.table())
+        print()
+    print("modal-superposition check: exciter (time-invariant cantilever, Rayleigh damping)")
+    scene = Scene(mechanisms.build("exciter"), steps=args.steps, effects=("inertia", "coupling", "springs"),
+                  damping=Rayleigh(0.0, 1e-4), hold="foh", name="exciter")
+    with _report_warnings():
+        rep = validate(scene)
+    print(rep.table())
+    for r in rep.responses:
+        good = r.max_rel_error <= args.tol
+        ok &= good
+        print(f"  {r.method}: max. relative difference {r.max_rel_error:.3e} "
+              f"{'<=' if good else '>'} {args.tol:g} -> {'PASS' if good else 'FAIL'}")
+    if not rep.responses:
+        print("  (no response check applied)")
+        ok = False
+    print(f"\nwall time {time.perf_counter() - t0:.2f} s")
+    return 0 if ok else 1
+
+
+# ----------------------------------------------------------------- sweep
+def _cmd_sweep(args) -> int:
+    from . import scenefile as sf
+    from . import sweep as sw
+    ld = _load(args.scene, _overrides(args))
+    axes = dict(ld.sweep)
+    for text in args.param or ():
+        k, v = sw.parse_axis(text)
+        axes[k] = v
+    if not axes:
+        raise InputError("sweep: nothing to sweep: give --param KEY=V1,V2,... (or KEY=START:STOP:NUM), "
+                         "or a scene file with a [sweep] table")
+    # validate the axis keys against the base scene before starting workers
+    sf.parse_scene(dict(ld.data, sweep={k: list(v) for k, v in axes.items()}), source="command line")
+    out_dir = Path(args.out) if args.out else ld.outputs.dir
+    n = sf.grid_size(axes)
+    where = args.scheduler
+    print(f"kedfem {__version__}: sweep of {n} points over {', '.join(axes)} on {where} ...", flush=True)
+    with _report_warnings():
+        res = sw.run_sweep(ld.data, axes, scheduler=args.scheduler, max_workers=args.workers,
+                           progress=False if args.no_progress else None, frequencies=not args.no_frequencies)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    files = [res.to_csv(out_dir / "sweep.csv")]
+    if not args.no_plots and len(res.failed) < len(res.points):
+        files.append(res.plot(out_dir / "sweep_peaks.png", x=args.x))
+    keys = list(axes)
+    print()
+    head = "  ".join(f"{k:>14s}" for k in keys)
+    print(f"{'point':>5s}  {head}  {'max peak stress [Pa]':>20s} {'max deflection [m]':>18s} "
+          f"{'f1 [Hz]':>9s} {'rho':>8s} {'time [s]':>8s}")
+    for p in res.points:
+        pv = dict(p.params)
+        vals = "  ".join(f"{str(sw._cell(pv.get(k))):>14s}" for k in keys)
+        if p.ok:
+            s = max((lp.stress for lp in p.peaks if math.isfinite(lp.stress)), default=float("nan"))
+            d = max((lp.deflection for lp in p.peaks), default=float("nan"))
+            print(f"{p.index:5d}  {vals}  {s:20.4e} {d:18.4e} {p.fundamental:9.3f} {p.spectral_radius:8.4f} "
+                  f"{p.wall_time:8.2f}")
+        else:
+            print(f"{p.index:5d}  {vals}  FAILED: {p.error}")
+    print(f"\n{len(res.points) - len(res.failed)} of {len(res.points)} points solved on {res.scheduler} "
+          f"in {res.wall_time:.2f} s")
+    print(f"files in {out_dir}/")
+    for f in files:
+        print(f"  {_rel(f, out_dir)}")
+    return 1 if res.failed else 0
+
+
+# ---------------------------------------------------------------- export
+def _cmd_export(args) -> int:
+    from . import export
+    ld = _load(args.scene, _overrides(args))
+    o = ld.outputs
+    out_dir = Path(args.out) if args.out else o.dir
+    sc = ld.scene
+    print(f"kedfem {__version__}: solving {sc.name or sc.mech.name} ({sc.steps} time nodes) ...", flush=True)
+    t0 = time.perf_counter()
+    res = _solve(sc)
+    t1 = time.perf_counter()
+    series = export.write_vtk_series(res, out_dir, scale=args.scale or o.scale, every=args.every or o.every)
+    files = [series.pvd]
+    modes = o.modes if args.modes is None else args.modes
+    if modes:
+        files.append(export.write_mode_shapes(res, out_dir, n_modes=modes).pvd)
+    t2 = time.perf_counter()
+    print(f"VTK series: {len(series.files)} frames, deformation scale {series.scale:g} "
+          f"(point data unscaled, SI units)")
+    if args.render or o.render:
+        from . import render as rd
+        frame = series.peak_frame if args.frame is None else args.frame
+        files.append(rd.render_series(series, out_dir / "deformed.png", frame=frame))
+        print(f"rendered frame {frame} (t = {series.times[frame]:.6g} s)")
+    t3 = time.perf_counter()
+    print(f"wall time [s]: solve {t1 - t0:.2f}, vtk {t2 - t1:.2f}, render {t3 - t2:.2f}")
+    print(f"files in {out_dir}/")
+    for f in files:
+        print(f"  {_rel(f, out_dir)}")
+    if not res.converged:
+        print("kedfem: note: the non-linear iteration did not converge", file=sys.stderr)
+    return 0
+
+
+# ------------------------------------------------------------------ list
+def _param_docs(module) -> dict[str, str]:
+    """First description line of each parameter of a mechanism (docstring, else DEFAULTS comments)."""
+    out: dict[str, str] = {}
+    doc = inspect.getdoc(module.build) or ""
+    lines = doc.splitlines()
+    if "Parameters" in lines:
+        names: list[str] = []
+        for line in lines[lines.index("Parameters") + 2:]:
+            if not line.strip():
+                continue
+            if not line.startswith(" "):
+                if " : " not in line:
+                    break
+                names = [n.strip() for n in line.split(" : ")[0].split(",")]
+                continue
+            for n in names:
+                out.setdefault(n, line.strip())
+            names = []
+    try:
+        src = inspect.getsource(module)
+    except (OSError, TypeError):
+        return out
+    for m in re.finditer(r"^\s*(\w+)\s*=\s*[^#\n]*#\s*(.+)$", src, re.M):
+        out.setdefault(m.group(1), m.group(2).strip())
+    return out
 
 
 def _cmd_list(args) -> int:
     import mechanisms
 
     from .effects import EFFECTS
-    print("mechanisms:", ", ".join(mechanisms.available()))
-    print("effects:")
+    from .scene import HOLDS, NONLINEAR_METHODS
+    from .scenefile import describe_damping, mechanism_parameters, preset
+    print("mechanisms (kedfem run NAME; parameters go in the [mechanism] table of a scene file, SI units;")
+    print("            the speed is the top-level speed_rpm):")
+    for name in mechanisms.available():
+        mod = mechanisms.get(name)
+        doc = (inspect.getdoc(mod.build) or "").splitlines()
+        pre = preset(name)
+        print(f"\n  {name}: {doc[0] if doc else ''}")
+        print(f"    preset: steps {pre.steps}; effects {', '.join(pre.effects)}; damping {describe_damping(pre.damping)}")
+        docs = _param_docs(mod)
+        for k, v in mechanism_parameters(mod).items():
+            d = docs.get(k, "")
+            if k == "speed":
+                d = (d.rstrip(".") + "; " if d else "") + "set it with speed_rpm [rev/min]"
+            print(f"    {k:<24s} = {v!r:<22} {d}")
+    print("\neffects (the scene's effects = [...]; nothing else is assembled):")
     for e in EFFECTS.values():
-        print(f"  {e.name:24s} {e.adds}")
+        print(f"  {e.name:<24s} {e.adds}")
+    print(f"\nholds: {', '.join(HOLDS)}; non-linear methods: {', '.join(NONLINEAR_METHODS)}")
+    print("damping models: rayleigh (alpha [1/s], beta [s]), modal (zeta [-]), none")
     return 0
 
 
-def _cmd_run(args) -> int:
-    import mechanisms
+# ---------------------------------------------------------------- parser
+def build_parser() -> argparse.ArgumentParser:
+    """The ``kedfem`` argument parser."""
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("-v", "--verbose", action="count", default=0, help="log more (-v info, -vv debug)")
 
-    from .kinematics import kinematics
-    from .modal import natural_frequencies
-    t0 = time.perf_counter()
-    mech = mechanisms.build(args.mechanism)
-    mo = kinematics(mech, steps=args.steps)
-    f = natural_frequencies(mech, n_modes=4, effects=("coupling", "axial_stiffening"), steps=args.steps)
-    dt = time.perf_counter() - t0
-    print(f"kedfem {__version__}: {mech.name}, {args.steps} time nodes, period {mo.period:.6g} s")
-    print(f"loop-closure residual {mo.residual:.2e} m")
-    print("natural frequencies over the cycle [Hz] (min / max):")
-    for k in range(f.frequencies.shape[1]):
-        print(f"  mode {k + 1}: {f.frequencies[:, k].min():10.3f} / {f.frequencies[:, k].max():10.3f}")
-    print(f"wall time {dt:.3f} s")
-    return 0
+    scene = argparse.ArgumentParser(add_help=False)
+    scene.add_argument("scene", nargs="?", metavar="SCENE.toml | MECHANISM",
+                       help="scene file or mechanism name (default: the built-in mould-oscillator scene)")
+    scene.add_argument("--out", metavar="DIR", help="output folder (default: the scene's output.dir, kedfem-out)")
+    scene.add_argument("--speed", type=_speed_arg, metavar="RPM", help="speed of the first drive [rev/min]")
+    scene.add_argument("--steps", type=_steps_arg, metavar="N", help="time nodes per cycle")
+    scene.add_argument("--hold", choices=("zoh", "foh", "magnus2"), help="hold of the state-space discretisation")
+    scene.add_argument("--effects", type=_effects_arg, metavar="E1,E2,...",
+                       help="effects to simulate, comma-separated, or 'all' (kedfem list)")
+
+    p = argparse.ArgumentParser(
+        prog="kedfem", description="Kineto-ElastoDynamics of planar elastic linkages: periodic steady-state "
+        "elastic response by the state-space closed-form method.",
+        epilog="With no command, 'kedfem' runs 'kedfem run'. Errors exit with status 2.")
+    p.add_argument("--version", action="version", version=f"kedfem {__version__}")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+
+    r = sub.add_parser("run", parents=[common, scene], help="solve a scene, print a summary, write outputs",
+                       description="Solve a scene and write CSV, NPZ, plots and a VTK series. Without SCENE, "
+                       "runs the built-in default scene (mould oscillator, paper section 5).")
+    r.add_argument("--no-plots", action="store_true", help="do not write PNG plots")
+    r.add_argument("--no-vtk", action="store_true", help="do not write the VTK series")
+    r.add_argument("--no-csv", action="store_true", help="do not write CSV tables")
+    r.add_argument("--no-npz", action="store_true", help="do not write result.npz")
+    r.add_argument("--render", action="store_true", help="also render deformed.png with pyvista (off-screen)")
+    r.add_argument("--no-render", action="store_true", help="do not render even if the scene file asks")
+    r.add_argument("--scale", type=_positive_float, metavar="S", help="VTK deformation scale (default: auto)")
+    r.add_argument("--every", type=_int_range(1, 10**6), metavar="K", help="write every K-th time node to VTK")
+    r.add_argument("--modes", type=_int_range(0, 24), metavar="N", help="mode shapes to export (0: none)")
+    r.add_argument("--n-modes", type=_int_range(1, 24), default=4, metavar="N",
+                   help="natural frequencies reported (default 4)")
+    r.add_argument("--dofs", metavar="L1,L2", help="DOF labels for the displacement plot")
+    r.add_argument("--strict", action="store_true",
+                   help=f"exit with status {EXIT_STRICT} if the iteration did not converge or the response is unstable")
+    r.set_defaults(func=_cmd_run)
+
+    v = sub.add_parser("validate", parents=[common], help="Table 3 and a modal-superposition check",
+                       description="Reproduce the paper's Table 3 (mould oscillator, four crank groups) and "
+                       "check the periodic solver against modal superposition on the exciter.")
+    v.add_argument("--steps", type=_steps_arg, default=180, metavar="N", help="time nodes per cycle (default 180)")
+    v.add_argument("--skip-table3", action="store_true", help="only the modal-superposition check")
+    v.add_argument("--tol", type=_positive_float, default=1e-6, help="pass threshold of the response check")
+    v.set_defaults(func=_cmd_validate)
+
+    s = sub.add_parser("sweep", parents=[common, scene], help="parameter sweep on a process pool or Dask",
+                       description="Solve a grid of scenes in parallel and write a tidy CSV table and a peak "
+                       "stress plot. Axes: --param KEY=V1,V2,... or KEY=START:STOP:NUM (repeatable), where KEY "
+                       "is a scene-file key: speed_rpm, steps, hold, mechanism.<parameter>, damping.<key>, "
+                       "solver.<key>; plus the [sweep] table of a scene file.")
+    s.add_argument("--param", action="append", metavar="KEY=VALUES", help="a sweep axis (repeatable)")
+    s.add_argument("--scheduler", default="processes", metavar="WHERE",
+                   help="processes (default), serial, local (Dask LocalCluster) or a Dask address tcp://host:port")
+    s.add_argument("--workers", type=_int_range(1, 1024), metavar="N", help="workers to start (default: CPUs)")
+    s.add_argument("--x", metavar="KEY", help="axis on the plot's x axis (default speed_rpm or the first numeric)")
+    s.add_argument("--no-plots", action="store_true", help="no plot")
+    s.add_argument("--no-frequencies", action="store_true", help="skip the fundamental frequency of each point")
+    s.add_argument("--no-progress", action="store_true", help="no progress bar")
+    s.set_defaults(func=_cmd_sweep)
+
+    e = sub.add_parser("export", parents=[common, scene], help="VTK/PVD series for ParaView, optional PNG render",
+                       description="Solve a scene and write the deformed mechanism over the cycle as a .pvd "
+                       "collection of .vtu files, its mode shapes, and with --render a PNG (pyvista, off-screen).")
+    e.add_argument("--scale", type=_positive_float, metavar="S", help="deformation scale (default: auto)")
+    e.add_argument("--every", type=_int_range(1, 10**6), metavar="K", help="write every K-th time node")
+    e.add_argument("--modes", type=_int_range(0, 24), metavar="N", help="mode shapes to export (0: none)")
+    e.add_argument("--render", action="store_true", help="render deformed.png off-screen")
+    e.add_argument("--frame", type=_int_range(0, 10**6), metavar="K",
+                   help="written frame to render (default: largest displacement)")
+    e.set_defaults(func=_cmd_export)
+
+    li = sub.add_parser("list", parents=[common], help="mechanisms, their parameters, and effects",
+                        description="List the mechanisms with their parameters and preset scenes, and the effects.")
+    li.set_defaults(func=_cmd_list)
+    return p
+
+
+def _setup_logging(verbose: int) -> None:
+    level = logging.WARNING if verbose <= 0 else logging.INFO if verbose == 1 else logging.DEBUG
+    root = logging.getLogger("kedfem")
+    if not any(getattr(h, "_kedfem_cli", False) for h in root.handlers):
+        h = logging.StreamHandler(sys.stderr)
+        h.setFormatter(logging.Formatter("kedfem: %(levelname)s: %(message)s"))
+        h._kedfem_cli = True
+        root.addHandler(h)
+    root.setLevel(level)
 
 
 def main(argv=None) -> int:
-    """Entry point of the ``kedfem`` console script."""
-    p = argparse.ArgumentParser(prog="kedfem", description="Kineto-ElastoDynamics of planar elastic linkages")
-    p.add_argument("--version", action="version", version=f"kedfem {__version__}")
-    sub = p.add_subparsers(dest="command")
-    r = sub.add_parser("run", help="analyse a mechanism")
-    r.add_argument("mechanism", nargs="?", default="slider_crank")
-    r.add_argument("--steps", type=int, default=360)
-    sub.add_parser("list", help="list mechanisms and effects")
-    args = p.parse_args(argv)
-    if args.command is None:
-        args = p.parse_args(["run"] + list(argv or []))
-    from .errors import KedError
+    """Entry point of the ``kedfem`` console script; returns the exit status."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or (argv[0] not in COMMANDS and argv[0] not in ("-h", "--help", "--version")):
+        argv = ["run"] + argv
+    parser = build_parser()
     try:
-        return {"run": _cmd_run, "list": _cmd_list}[args.command](args)
+        args = parser.parse_args(argv)
+    except SystemExit as e:  # argparse: --help / --version (0) or a usage error (2)
+        return int(e.code or 0)
+    _setup_logging(args.verbose)
+    try:
+        return int(args.func(args))
     except KedError as e:
-        print(f"kedfem: error: {e}", file=sys.stderr)
-        return 2
+        print(f"kedfem: error: {' '.join(str(e).split())}", file=sys.stderr)
+        return EXIT_ERROR
+    except BrokenPipeError:  # e.g. `kedfem list | head`: stop quietly
+        with contextlib.suppress(OSError):
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        return 1
+    except OSError as e:
+        print(f"kedfem: error: {e.strerror or e}: {e.filename or ''}".rstrip(": "), file=sys.stderr)
+        return EXIT_ERROR
+    except KeyboardInterrupt:
+        print("kedfem: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":  # pragma: no cover

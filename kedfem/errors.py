@@ -50,3 +50,7 @@ class InstabilityWarning(UserWarning):
 
 class ConvergenceWarning(UserWarning):
     """A non-linear iteration stopped before meeting its tolerance."""
+
+
+class OptionalDependencyError(KedError, ImportError):
+    """An optional library needed for this output is not installed."""

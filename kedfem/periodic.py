@@ -875,6 +875,7 @@ def solve(M, C, K, Q, period: float, hold: str = "zoh", *, n: int | None = None,
             passes = 1 if keep else 2
             rn2 = rnorm ** 2
             S = Zs.shape[0]
+            z_carry = None  # state carried across chunk boundaries inside a segment
             for ci, (a, b) in enumerate(elems.bounds()):
                 A, bvec = (kept_A[ci], kept_b[ci]) if keep else elems.compute(a, b)
                 for s0 in range(a, b, seg):

@@ -304,18 +304,23 @@ class PeriodicResult:
         f, phi = eig_frequencies(S.M, K, min(n_modes, self.model.n_dof), shapes=True)
         return f[0], phi[0]
 
-    def joint_displacement(self, joint: str) -> np.ndarray:
-        """Elastic displacement (n, 2) [m] of a joint (global components)."""
+    def joint_displacement(self, joint: str, U: np.ndarray | None = None) -> np.ndarray:
+        """Elastic displacement (n, 2) [m] of a joint (global components).
+
+        With ``U`` (n, N) or (N,) a different DOF history (e.g. a mode shape)
+        is mapped instead of the response.
+        """
         forms = self._cache.get("forms")
         if forms is None:
             forms = self.model.point_forms(self.motion)
             self._cache["forms"] = forms
         if joint not in self.model.joint_point:
-            raise InputError(f"unknown joint '{joint}'")
+            raise InputError(f"unknown joint '{joint}' (joints: {', '.join(self.model.joint_point)})")
         cols, C, _c1, _c2, _mv = forms[self.model.joint_point[joint]]
         if not cols:
             return np.zeros((self.n, 2))
-        q = self.U[:, list(cols)]
+        U = self.U if U is None else np.broadcast_to(np.asarray(U, float), self.U.shape)
+        q = U[:, list(cols)]
         return np.einsum("tij,tj->ti", np.broadcast_to(C, (self.n,) + C.shape[1:]), q)
 
     def peaks(self) -> list[LinkPeaks]:

@@ -148,7 +148,6 @@ def test_passive_link_follows_chord_and_prescribes_stretch():
     m.ground("G", at=(0.8, 0.0))
     bar = kf.Section.rectangle(0.01, 0.01)
     m.link("bar", "B", "G", material=STEEL, section=bar, elements=1, kinematic=False)
-    fe = kf.FEModel(m)
     mo = kf.kinematics(m, steps=12)
     # the passive link's angle is the chord angle (B -> G along +x), not a loop unknown
     np.testing.assert_allclose(np.cos(mo.angle("bar")), 1.0, atol=1e-12)

@@ -1,0 +1,534 @@
+"""Parameter sweeps: a grid of scenes solved on a process pool or a Dask cluster.
+
+A sweep is a *base* scene dictionary (the layout of a TOML scene file, see
+:mod:`kedfem.scenefile`) and *axes*: dotted keys with lists of values
+(``{"speed_rpm": [500, 1000], "mechanism.elements": [4, 8]}``). Every grid
+point is a plain, picklable dictionary; a worker validates it with
+:func:`kedfem.scenefile.scene_from_dict`, solves it and returns a
+:class:`PointResult`. A point whose parameters are bad, or whose solve fails,
+is recorded with its error message; the others complete.
+
+Executors:
+
+* ``scheduler="processes"`` (default): :class:`concurrent.futures.ProcessPoolExecutor`
+  with one worker per core;
+* ``executor=``: any :class:`concurrent.futures.Executor` you pass (not shut down);
+* ``scheduler="local"``: a ``dask.distributed.LocalCluster`` (one single-threaded
+  worker process per core) started and stopped for the sweep;
+* ``scheduler="tcp://host:8786"``: an existing Dask scheduler, or ``client=`` a
+  ``dask.distributed.Client``;
+* ``scheduler="serial"``: in this process, one point after the other.
+
+Workers pin their BLAS/LAPACK thread pools to one thread (threadpoolctl;
+``OPENBLAS_NUM_THREADS`` etc. are also set for processes they start):
+otherwise two workers on two cores each start several BLAS threads and the
+sweep runs slower than serially. Dask's local workers are *spawned* processes,
+so scripts that start a sweep need an ``if __name__ == "__main__":`` guard.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import csv
+import logging
+import math
+import os
+import sys
+import time
+import traceback
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from .errors import InputError, KedError
+from .export import atomic_path, require
+from .results import LinkPeaks
+
+__all__ = ["SweepPoint", "PointResult", "SweepTable", "SweepResult", "make_points", "run_point", "run_sweep",
+           "parse_axis", "pin_blas", "blas_threads", "TABLE_COLUMNS"]
+
+log = logging.getLogger(__name__)
+
+_BLAS_ENV = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
+             "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
+_PINNED: list = []
+
+
+def pin_blas() -> None:
+    """Limit this process's BLAS/OpenMP thread pools to one thread (idempotent).
+
+    Sets the usual environment variables (inherited by any process started
+    later) and, since the libraries are already loaded, limits them at run
+    time with threadpoolctl when it is installed.
+    """
+    if _PINNED:
+        return
+    for k in _BLAS_ENV:
+        os.environ[k] = "1"
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # pragma: no cover - threadpoolctl is a dependency
+        log.warning("threadpoolctl is not installed: BLAS threads of an already loaded library stay unpinned")
+        _PINNED.append(None)
+        return
+    _PINNED.append(threadpool_limits(limits=1))  # kept alive: the limits hold until restored
+
+
+def blas_threads() -> int:
+    """Largest thread count of the BLAS/OpenMP pools loaded in this process (threadpoolctl)."""
+    try:
+        from threadpoolctl import threadpool_info
+    except ImportError:  # pragma: no cover
+        return -1
+    return max((int(i.get("num_threads", 1)) for i in threadpool_info()), default=1)
+
+
+def _init_worker() -> None:
+    pin_blas()
+
+
+def _mp_context():
+    """``forkserver`` where available, else ``spawn``; never a plain ``fork``.
+
+    Forking a process whose OpenBLAS (or tqdm, or Dask) threads are running
+    can leave a lock held in the child: the worker then hangs forever in
+    its first BLAS call. Python 3.14 made ``forkserver`` the default on
+    Linux for this reason.
+    """
+    import multiprocessing as mp
+    methods = mp.get_all_start_methods()
+    return mp.get_context("forkserver" if "forkserver" in methods else "spawn")
+
+
+# ---------------------------------------------------------------- the grid
+@dataclass(frozen=True)
+class SweepPoint:
+    """One grid point: its index, its parameter values and the full scene dictionary."""
+
+    index: int
+    params: tuple[tuple[str, Any], ...]
+    scene: dict
+
+
+def _normalize_axes(axes: Mapping[str, Sequence]) -> dict[str, tuple]:
+    """Axes as ``{str: tuple}``; NumPy arrays and scalars become plain Python values."""
+    ax = {}
+    for k, v in axes.items():
+        if isinstance(v, (str, bytes, Mapping)) or not isinstance(v, (Sequence, np.ndarray, range)) \
+                or len(v) == 0:
+            raise InputError(f"sweep: axis {k!r} must be a non-empty list of values, got {v!r}")
+        ax[str(k)] = tuple(x.item() if isinstance(x, np.generic) else x for x in v)
+    return ax
+
+
+def make_points(base: Mapping, axes: Mapping[str, Sequence]) -> list[SweepPoint]:
+    """Cartesian grid of scene dictionaries (the first axis varies slowest).
+
+    Parameters
+    ----------
+    base : mapping
+        Base scene dictionary (``{"mechanism": {"name": "slider_crank"}}``...).
+    axes : mapping of str to sequence
+        Dotted keys and their values.
+
+    Returns
+    -------
+    list of SweepPoint
+
+    Raises
+    ------
+    InputError
+        No axes, an empty axis, or more than
+        :data:`kedfem.scenefile.MAX_SWEEP_POINTS` points.
+    """
+    from .scenefile import MAX_SWEEP_POINTS, grid_points, with_overrides
+    if not isinstance(base, Mapping):
+        raise InputError(f"sweep: base must be a scene dictionary, got {type(base).__name__}")
+    if not axes:
+        raise InputError("sweep: nothing to sweep (give at least one axis: a dotted key and its values)")
+    ax = _normalize_axes(axes)
+    n = math.prod(len(v) for v in ax.values())
+    if n > MAX_SWEEP_POINTS:
+        raise InputError(f"sweep: {n} points exceed the limit of {MAX_SWEEP_POINTS} "
+                         "(kedfem.scenefile.MAX_SWEEP_POINTS)")
+    base = {k: v for k, v in base.items() if k not in ("sweep", "output")}
+    return [SweepPoint(i, tuple(p.items()), with_overrides(base, p)) for i, p in enumerate(grid_points(ax))]
+
+
+def parse_axis(text: str) -> tuple[str, tuple]:
+    """Parse a command-line axis ``KEY=V1,V2,...`` or ``KEY=START:STOP:NUM``.
+
+    Values are TOML scalars (``4``, ``0.3``, ``"foh"``, ``true``); a bare word
+    is taken as a string. ``START:STOP:NUM`` gives ``NUM`` evenly spaced
+    numbers including both ends.
+
+    Raises
+    ------
+    InputError
+    """
+    import tomllib
+    if "=" not in text:
+        raise InputError(f"sweep axis {text!r}: expected KEY=V1,V2,... or KEY=START:STOP:NUM")
+    key, _, vals = text.partition("=")
+    key = key.strip()
+    if not key:
+        raise InputError(f"sweep axis {text!r}: missing key before '='")
+
+    def scalar(s):
+        s = s.strip()
+        try:
+            return tomllib.loads(f"v = {s}")["v"]
+        except tomllib.TOMLDecodeError:
+            if s and all(c.isalnum() or c in "_-+." for c in s):
+                return s
+            raise InputError(f"sweep axis {key!r}: cannot read value {s!r}") from None
+
+    parts = vals.split(":")
+    if len(parts) == 3:
+        a, b, num = scalar(parts[0]), scalar(parts[1]), scalar(parts[2])
+        if not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in (a, b)) or \
+                isinstance(num, bool) or not isinstance(num, int) or num < 1:
+            raise InputError(f"sweep axis {key!r}: START:STOP:NUM needs two numbers and an integer NUM >= 1")
+        values = tuple(float(x) for x in np.linspace(float(a), float(b), num))
+        if all(isinstance(x, int) for x in (a, b)) and all(v.is_integer() for v in values):
+            values = tuple(int(v) for v in values)
+        return key, values
+    values = tuple(scalar(s) for s in vals.split(",") if s.strip())
+    if not values:
+        raise InputError(f"sweep axis {key!r}: no values")
+    return key, values
+
+
+# ------------------------------------------------------------ one point
+@dataclass(frozen=True)
+class PointResult:
+    """Outcome of one grid point.
+
+    Attributes
+    ----------
+    index : int
+    params : tuple of (str, value)
+    ok : bool
+        The point was solved (``error`` is empty).
+    error : str
+        One-line error message of a failed point.
+    wall_time : float
+        Seconds spent on the point in the worker.
+    converged, stable : bool or None
+    iterations : int
+    spectral_radius : float
+        Largest Floquet multiplier modulus [-].
+    fundamental : float
+        Cycle mean of the lowest state-space natural frequency [Hz] (NaN if not computed).
+    peaks : tuple of LinkPeaks
+    worker : str
+        ``host:pid`` of the process that solved the point.
+    """
+
+    index: int
+    params: tuple[tuple[str, Any], ...]
+    ok: bool
+    error: str = ""
+    wall_time: float = float("nan")
+    converged: bool | None = None
+    stable: bool | None = None
+    iterations: int = 0
+    spectral_radius: float = float("nan")
+    fundamental: float = float("nan")
+    peaks: tuple[LinkPeaks, ...] = ()
+    worker: str = ""
+
+
+def _worker_id() -> str:
+    import socket
+    return f"{socket.gethostname()}:{os.getpid()}"
+
+
+def run_point(point: SweepPoint, frequencies: bool = True, pin: bool = True) -> PointResult:
+    """Validate, solve and summarise one grid point (runs in a worker).
+
+    Never raises for a bad point: errors become ``PointResult(ok=False, error=...)``.
+    """
+    import warnings
+
+    from .errors import ConvergenceWarning, InstabilityWarning
+    from .pipeline import solve
+    from .scenefile import scene_from_dict
+    if pin:
+        pin_blas()
+    t0 = time.perf_counter()
+    try:
+        scene = scene_from_dict(point.scene)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ConvergenceWarning)
+            warnings.simplefilter("ignore", InstabilityWarning)
+            res = solve(scene)
+        fund = res.frequencies(1).fundamental if frequencies else float("nan")
+        mu = np.abs(np.asarray(res.floquet_multipliers))
+        return PointResult(point.index, point.params, True, "", time.perf_counter() - t0, bool(res.converged),
+                           bool(res.stable), int(res.iterations), float(mu.max()) if mu.size else float("nan"),
+                           float(fund), tuple(res.peaks()), _worker_id())
+    except KedError as e:
+        msg = str(e)
+    except Exception as e:  # noqa: BLE001 - one bad point must not kill the sweep
+        log.debug("sweep point %d failed", point.index, exc_info=True)
+        msg = f"{type(e).__name__}: {e} ({traceback.extract_tb(e.__traceback__)[-1].name})"
+    return PointResult(point.index, point.params, False, " ".join(msg.split()), time.perf_counter() - t0,
+                       worker=_worker_id())
+
+
+# ---------------------------------------------------------------- tables
+#: result columns of the tidy table, after the point index and the axis columns
+TABLE_COLUMNS = ("link", "peak_deflection_m", "deflection_angle_rad", "peak_stress_Pa", "stress_angle_rad",
+                 "stress_station_m", "fundamental_Hz", "spectral_radius", "stable", "converged", "iterations",
+                 "wall_time_s", "ok", "error")
+
+
+def _cell(v):
+    if isinstance(v, (list, tuple)):
+        return "+".join(str(x) for x in v)
+    return v
+
+
+@dataclass(frozen=True)
+class SweepTable:
+    """A tidy table: one row per (grid point, flexible link); failed points have one row.
+
+    Columns ``point``, one per axis (its dotted key), then :data:`TABLE_COLUMNS`.
+    """
+
+    names: tuple[str, ...]
+    rows: tuple[tuple, ...]
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """The table as columns (numeric columns as float arrays)."""
+        out = {}
+        for j, name in enumerate(self.names):
+            vals = [r[j] for r in self.rows]
+            if vals and all(isinstance(v, (int, float, np.number)) and not isinstance(v, bool) for v in vals):
+                out[name] = np.array(vals, dtype=float)
+            else:
+                out[name] = np.array(vals, dtype=object)
+        return out
+
+    def __len__(self):
+        return len(self.rows)
+
+    def to_csv(self, path) -> Path:
+        """Write the table as CSV (floats with full precision)."""
+        path = Path(path)
+        with atomic_path(path) as tmp, open(tmp, "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(self.names)
+            for r in self.rows:
+                w.writerow([repr(float(v)) if isinstance(v, float) else v for v in r])
+        return path
+
+
+@dataclass(frozen=True)
+class SweepResult:
+    """All points of a sweep, in grid order.
+
+    Attributes
+    ----------
+    axes : tuple of (str, tuple)
+        The swept keys and values.
+    points : tuple of PointResult
+    wall_time : float
+        Seconds for the whole sweep (including starting the workers).
+    scheduler : str
+        Where it ran.
+    """
+
+    axes: tuple[tuple[str, tuple], ...]
+    points: tuple[PointResult, ...]
+    wall_time: float
+    scheduler: str
+    _table: list = field(default_factory=list, repr=False, compare=False)
+
+    @property
+    def failed(self) -> tuple[PointResult, ...]:
+        """The points that could not be solved."""
+        return tuple(p for p in self.points if not p.ok)
+
+    def table(self) -> SweepTable:
+        """The tidy table (see :class:`SweepTable`)."""
+        if self._table:
+            return self._table[0]
+        keys = [k for k, _ in self.axes]
+        names = ("point",) + tuple(keys) + TABLE_COLUMNS
+        rows = []
+        nan = float("nan")
+        for p in self.points:
+            pv = dict(p.params)
+            head = (p.index,) + tuple(_cell(pv.get(k)) for k in keys)
+            tail = (p.fundamental, p.spectral_radius, p.stable, p.converged, p.iterations, p.wall_time, p.ok,
+                    p.error)
+            if p.peaks:
+                for lp in p.peaks:
+                    rows.append(head + (lp.link, lp.deflection, lp.deflection_angle, lp.stress, lp.stress_angle,
+                                        lp.stress_station) + tail)
+            else:
+                rows.append(head + ("", nan, nan, nan, nan, nan) + tail)
+        t = SweepTable(names, tuple(rows))
+        self._table.append(t)
+        return t
+
+    def to_csv(self, path) -> Path:
+        """Write :meth:`table` as CSV."""
+        return self.table().to_csv(path)
+
+    def plot(self, path, x: str | None = None, y: str = "peak_stress_Pa") -> Path:
+        """Peak stress (or ``y``) vs the axis ``x`` (default ``speed_rpm`` if swept, else the
+        first numeric axis), one curve per link and combination of the other axes."""
+        from . import plots
+        keys = [k for k, _ in self.axes]
+        if x is None:
+            numeric = [k for k, v in self.axes
+                       if all(isinstance(e, (int, float)) and not isinstance(e, bool) for e in v)]
+            x = "speed_rpm" if "speed_rpm" in numeric else (numeric[0] if numeric else keys[0])
+        if x not in keys:
+            raise InputError(f"sweep plot: x must be a swept key ({', '.join(keys)}), got {x!r}")
+        by = ["link"] + [k for k in keys if k != x]
+        return plots.sweep_peaks(self.table(), path, x=x, y=y, by=by)
+
+
+# ------------------------------------------------------------- executors
+def _progress(total: int, progress: bool | None):
+    from tqdm.auto import tqdm
+    return tqdm(total=total, desc="sweep", unit="point", file=sys.stderr, disable=None if progress is None
+                else not progress, dynamic_ncols=True)
+
+
+def _failed(p: SweepPoint, e: BaseException) -> PointResult:
+    return PointResult(p.index, p.params, False, f"{type(e).__name__}: {' '.join(str(e).split())}")
+
+
+def _run_futures(submit, points, bar, wait):
+    futs = {}
+    for p in points:
+        futs[submit(p)] = p
+    out = {}
+    for fut in wait(list(futs)):
+        p = futs[fut]
+        try:
+            r = fut.result()
+        except Exception as e:  # noqa: BLE001 - e.g. a worker process died
+            r = _failed(p, e)
+        out[p.index] = r
+        bar.update(1)
+        if not r.ok:
+            log.info("sweep point %d %s failed: %s", p.index, dict(p.params), r.error)
+    return out
+
+
+def run_sweep(base: Mapping, axes: Mapping[str, Sequence] | None = None, *, points: Sequence[SweepPoint] | None = None,
+              scheduler: str = "processes", executor: cf.Executor | None = None, client=None,
+              max_workers: int | None = None, progress: bool | None = None,
+              frequencies: bool = True) -> SweepResult:
+    """Solve a grid of scenes in parallel.
+
+    Parameters
+    ----------
+    base : mapping
+        Base scene dictionary (TOML layout); unused with ``points``.
+    axes : mapping of str to sequence
+        Swept dotted keys and their values (see :func:`make_points`).
+    points : sequence of SweepPoint, optional
+        Explicit points instead of a grid (``base`` and ``axes`` are then
+        ignored; the table's axis columns are the points' parameter keys).
+    scheduler : str
+        ``"processes"``, ``"serial"``, ``"local"`` (Dask LocalCluster) or a
+        Dask scheduler address ``"tcp://host:port"``; ignored with
+        ``executor`` or ``client``.
+    executor : concurrent.futures.Executor, optional
+        Run on this executor (left running).
+    client : dask.distributed.Client, optional
+        Run on this Dask client (left running).
+    max_workers : int, optional
+        Workers of a pool or LocalCluster this function starts (default: CPU count).
+    progress : bool, optional
+        tqdm progress bar on stderr (default: only on a terminal).
+    frequencies : bool
+        Also compute each point's fundamental frequency.
+
+    Returns
+    -------
+    SweepResult
+    """
+    import functools
+    if points is None:
+        points = make_points(base, axes or {})
+        ax = tuple(_normalize_axes(axes).items())
+    else:
+        points = list(points)
+        keys = list(dict.fromkeys(k for p in points for k, _ in p.params))
+        ax = tuple((k, tuple(dict.fromkeys(_cell(dict(p.params).get(k)) for p in points))) for k in keys)
+    if max_workers is not None and (isinstance(max_workers, bool) or not isinstance(max_workers, int)
+                                    or max_workers < 1):
+        raise InputError(f"sweep: max_workers must be an integer >= 1, got {max_workers!r}")
+    workers = max_workers or os.cpu_count() or 1
+    fn = functools.partial(run_point, frequencies=frequencies)
+    t0 = time.perf_counter()
+    with _progress(len(points), progress) as bar:
+        if executor is not None:
+            where = type(executor).__name__
+            out = _run_futures(lambda p: executor.submit(fn, p), points, bar, cf.as_completed)
+        elif client is not None:
+            where = f"dask {getattr(getattr(client, 'scheduler', None), 'address', 'client')}"
+            out = _run_dask(client, fn, points, bar)
+        elif scheduler == "serial":
+            where = "serial"
+            out = {}
+            for p in points:
+                out[p.index] = run_point(p, frequencies=frequencies, pin=False)
+                bar.update(1)
+        elif scheduler == "processes":
+            where = f"process pool ({workers} workers)"
+            with cf.ProcessPoolExecutor(max_workers=workers, initializer=_init_worker,
+                                        mp_context=_mp_context()) as ex:
+                out = _run_futures(lambda p: ex.submit(fn, p), points, bar, cf.as_completed)
+        elif scheduler == "local" or str(scheduler).startswith(("tcp://", "tls://", "ws://", "wss://",
+                                                                  "inproc://", "ucx://")):
+            dd = require("distributed", "dask", "a Dask sweep")
+            if scheduler == "local":
+                where = f"dask LocalCluster ({workers} workers)"
+                with dd.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                     dashboard_address=None) as cluster, dd.Client(cluster) as cl:
+                    out = _run_dask(cl, fn, points, bar)
+            else:
+                where = f"dask {scheduler}"
+                try:
+                    cl = dd.Client(scheduler, timeout="10s")
+                except (OSError, TimeoutError) as e:
+                    raise KedError(f"sweep: cannot connect to the Dask scheduler {scheduler}: {e}") from None
+                with cl:
+                    out = _run_dask(cl, fn, points, bar)
+        else:
+            raise InputError(f"sweep: scheduler must be 'processes', 'serial', 'local' or a Dask address "
+                             f"'tcp://host:port', got {scheduler!r}")
+    wall = time.perf_counter() - t0
+    res = tuple(out[p.index] for p in points)
+    nf = sum(not r.ok for r in res)
+    log.info("sweep: %d points on %s in %.2f s (%d failed)", len(res), where, wall, nf)
+    return SweepResult(ax, res, wall, where)
+
+
+def _run_dask(client, fn, points, bar):
+    from distributed import as_completed
+    client.run(pin_blas)
+    futs = client.map(fn, list(points), pure=False)
+    by_key = {f.key: p for f, p in zip(futs, points)}
+    out = {}
+    for fut in as_completed(futs):
+        p = by_key[fut.key]
+        try:
+            r = fut.result()
+        except Exception as e:  # noqa: BLE001 - e.g. KilledWorker
+            r = _failed(p, e)
+        out[p.index] = r
+        bar.update(1)
+    return out
+

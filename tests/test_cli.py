@@ -1,0 +1,186 @@
+"""The ``kedfem`` command line: the default run end to end, every subcommand, clean errors."""
+
+import csv
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import kedfem
+from kedfem import cli
+from kedfem.scenefile import MAX_STEPS
+
+ROOT = Path(__file__).resolve().parents[1]
+#: wall-time limits are multiplied by this factor (set it on a loaded or slow machine)
+TIME_FACTOR = float(os.environ.get("KEDFEM_TIME_FACTOR", "1"))
+
+
+def kedfem_command():
+    exe = Path(sys.executable).parent / "kedfem"
+    if exe.exists():
+        return [str(exe)]                         # the installed console script
+    found = shutil.which("kedfem")
+    return [found] if found else [sys.executable, "-m", "kedfem.cli"]
+
+
+def test_default_run_end_to_end(tmp_path):
+    """``kedfem run`` on the built-in default scene: < 20 s, plots + CSV + PVD series + the summary table."""
+    env = dict(os.environ)
+    env.pop("DISPLAY", None)
+    t0 = time.perf_counter()
+    out = subprocess.run(kedfem_command() + ["run"], cwd=tmp_path, capture_output=True, text=True, env=env,
+                         timeout=300)
+    wall = time.perf_counter() - t0
+    assert out.returncode == 0, out.stderr
+    assert "Traceback" not in out.stderr
+    text = out.stdout
+    for heading in ("mould oscillator, group 1", "built-in default scene", "natural frequencies over the cycle [Hz]",
+                    "state-space", "modal", "peak response per flexible link", "Floquet stability",
+                    "spectral radius", "converged:", "residual", "wall time [s]", "kinematics", "solve",
+                    "files in kedfem-out/"):
+        assert heading in text, heading
+    dest = tmp_path / "kedfem-out"
+    for name in ("response.csv", "peaks.csv", "frequencies.csv", "result.npz", "displacement.png",
+                 "link_response.png", "frequencies.png", "floquet.png", "response.pvd", "modes.pvd", "summary.txt"):
+        assert (dest / name).is_file(), name
+        assert name in text
+    assert len(list((dest / "response").glob("*.vtu"))) == 180
+    assert (dest / "summary.txt").read_text().strip() in text
+    # the printed peak table is the CSV's
+    with open(dest / "peaks.csv", newline="") as f:
+        peaks = list(csv.DictReader(f))
+    assert [p["link"] for p in peaks] == ["rod_outer", "rod_inner", "leaf_inner", "leaf_outer"]
+    for p in peaks:
+        row = next(ln for ln in text.splitlines() if ln.strip().startswith(p["link"] + " "))
+        nums = row.split()
+        assert float(nums[1]) == pytest.approx(float(p["peak_deflection [m]"]), rel=1e-4)
+        assert float(nums[3]) == pytest.approx(float(p["peak_stress [Pa]"]), rel=1e-4)
+    rho = float(re.search(r"spectral radius ([0-9.]+)", text).group(1))
+    z = np.load(dest / "result.npz")
+    assert rho == pytest.approx(np.abs(z["floquet_multipliers"]).max(), abs=1e-6)
+    conv = re.search(r"converged: (yes|NO)", text).group(1)
+    assert (conv == "yes") == bool(z["converged"])
+    total = float(re.search(r"total ([0-9.]+)", text).group(1))
+    assert total < 20.0 * TIME_FACTOR, f"kedfem run took {total:.1f} s (process {wall:.1f} s)"
+
+
+def run(capsys, *argv):
+    rc = cli.main(list(argv))
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+def test_small_run_in_process_honours_flags(tmp_path, capsys):
+    rc, out, err = run(capsys, "run", "slider-crank", "--steps", "24", "--speed", "600", "--out", str(tmp_path),
+                       "--no-vtk", "--no-plots", "--effects", "inertia,coupling", "--hold", "zoh")
+    assert rc == 0, err
+    assert "24 time nodes, hold zoh" in out and "600 rpm (62.8319 rad/s)" in out
+    assert "effects     inertia, coupling" in out
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["frequencies.csv", "peaks.csv", "response.csv",
+                                                          "result.npz", "summary.txt"]
+
+
+def test_scene_file_outputs_and_strict(tmp_path, capsys):
+    scene = tmp_path / "s.toml"
+    scene.write_text(f'steps = 24\n[mechanism]\nname = "exciter"\n[output]\ndir = "{tmp_path / "o"}"\n'
+                     'plots = false\ncsv = false\nnpz = false\nmodes = 0\nevery = 6\n')
+    rc, out, err = run(capsys, "run", str(scene), "--strict")
+    assert rc == 0, err
+    assert sorted(p.name for p in (tmp_path / "o").iterdir()) == ["response", "response.pvd", "summary.txt"]
+    assert len(list((tmp_path / "o" / "response").iterdir())) == 4
+
+
+def one_line_error(rc, err, *words):
+    assert rc == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("kedfem: error: "), err
+    for w in words:
+        assert w in lines[0], (w, err)
+
+
+def test_errors_are_one_line_exit_2(tmp_path, capsys):
+    rc, _, err = run(capsys, "run", "slidercrank")
+    one_line_error(rc, err, "'slidercrank'", "did you mean 'slider_crank'")
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[mechanism]\nname = "exciter"\nelements = 3\ntip_mas = 1.0\n')
+    rc, _, err = run(capsys, "run", str(bad))
+    one_line_error(rc, err, f"{bad}:4:", "mechanism.tip_mas", "did you mean 'tip_mass'")
+    rc, _, err = run(capsys, "export", str(tmp_path / "missing.toml"))
+    one_line_error(rc, err, "missing.toml", "cannot read")
+    rc, _, err = run(capsys, "sweep", "exciter", "--steps", "12", "--param", "mechanism.lenght=1,2")
+    one_line_error(rc, err, "sweep.mechanism.lenght", "mechanism.length")
+    rc, _, err = run(capsys, "sweep", "exciter")
+    one_line_error(rc, err, "nothing to sweep")
+    rc, _, err = run(capsys, "run", "four_bar", "--steps", "12", "--dofs", "nope", "--out", str(tmp_path / "x"),
+                     "--no-vtk")
+    one_line_error(rc, err, "'nope'")
+    # argparse usage errors: exit 2 with usage, no traceback
+    rc, _, err = run(capsys, "run", "--steps", str(MAX_STEPS + 1))
+    assert rc == 2 and "--steps" in err and "Traceback" not in err
+    rc, _, err = run(capsys, "run", "--speed", "nan")
+    assert rc == 2 and "--speed" in err
+
+
+def test_kedfem_errors_in_a_subprocess_print_no_traceback(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("steps = inf\n[mechanism]\nname = 'exciter'\n")
+    out = subprocess.run(kedfem_command() + ["run", str(bad)], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 2 and "Traceback" not in out.stderr
+    assert out.stderr.strip() == f"kedfem: error: {bad}:1: steps: must be an integer, got a number inf"
+
+
+def test_help_version_and_list(capsys):
+    for argv in (["--help"], ["run", "--help"], ["validate", "--help"], ["sweep", "--help"], ["export", "--help"],
+                 ["list", "--help"]):
+        rc, out, _ = run(capsys, *argv)
+        assert rc == 0 and out.startswith("usage: kedfem"), argv
+    rc, out, _ = run(capsys, "--version")
+    assert rc == 0 and out.strip() == f"kedfem {kedfem.__version__}"
+    rc, out, _ = run(capsys, "list")
+    assert rc == 0
+    import mechanisms
+    for name in mechanisms.available():
+        assert f"  {name}: " in out
+    for e, eff in kedfem.EFFECTS.items():
+        assert e in out and eff.adds in out
+    assert "rod_diameter" in out and "[m]" in out and "speed_rpm" in out
+
+
+def test_validate(capsys, monkeypatch):
+    from kedfem import validation
+
+    def quick_table3(steps=180, **kw):
+        assert steps == 12
+        return validation.ValidationReport((validation.FrequencyCheck("mould oscillator, group 1", 17.3, 17.3,
+                                                                       17.0, 17.6, 5, True, 17.33, 17.35),))
+
+    monkeypatch.setattr(validation, "table3", quick_table3)
+    rc, out, err = run(capsys, "validate", "--steps", "12")
+    assert rc == 0, err
+    assert "Table 3" in out and "mould oscillator, group 1" in out and "17.33" in out
+    assert "modal superposition (foh)" in out and "PASS" in out
+    rc, out, _ = run(capsys, "validate", "--steps", "12", "--skip-table3", "--tol", "1e-30")
+    assert rc == 1 and "FAIL" in out and "Table 3" not in out
+
+
+def test_sweep_and_export_commands(tmp_path, capsys):
+    rc, out, err = run(capsys, "sweep", "slider_crank", "--steps", "20", "--param", "speed_rpm=500,1000",
+                       "--param", "mechanism.rod=0.1,0.3", "--scheduler", "serial", "--out", str(tmp_path / "s"))
+    assert rc == 1                      # two of four points failed, and the sweep says so
+    assert out.count("FAILED") == 2 and "rod > crank" in out and "2 of 4 points solved" in out
+    assert (tmp_path / "s" / "sweep.csv").is_file() and (tmp_path / "s" / "sweep_peaks.png").is_file()
+    pytest.importorskip("pyvista")
+    rc, out, err = run(capsys, "export", "exciter", "--steps", "24", "--render", "--modes", "2",
+                       "--out", str(tmp_path / "e"))
+    assert rc == 0, err
+    e = tmp_path / "e"
+    assert (e / "response.pvd").is_file() and len(list((e / "modes").iterdir())) == 2
+    import matplotlib.image as mpimg
+    img = mpimg.imread(str(e / "deformed.png"))[..., :3]
+    assert 0.002 < 1.0 - np.all(img > 0.97, axis=-1).mean() < 0.9 and img.std() > 0.02   # not blank
