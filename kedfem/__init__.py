@@ -21,3 +21,4 @@ from .expm import expm
 from .validation import ValidationReport, validate, table3
 from .defaults import default_scene
 from .scenefile import SceneFileError, load_scene, scene_from_dict
+from .reduction import CraigBampton

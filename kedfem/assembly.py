@@ -57,6 +57,8 @@ class PointDof:
     parent: int = -1
     phi: int = -1
     loc: tuple = ()
+    block: int = -1  # kind "cb": Craig-Bampton block and interior node index
+    node: int = -1
 
 
 @dataclass(frozen=True)
@@ -73,6 +75,8 @@ class RotDof:
     member: str | None = None
     master: str | None = None
     offset: bool = False
+    block: int = -1  # kind "cb": Craig-Bampton block and interior node index
+    node: int = -1
 
 
 @dataclass
@@ -145,10 +149,21 @@ class FEModel:
         One label per DOF, e.g. ``"B.ux"``, ``"rod.n3.theta"``.
     groups : dict of str -> Group
         ``beam``, ``rigid``, ``pmass``, ``spring``, ``tspring``, ``load``.
+    reduction : CraigBampton or None
+        Craig-Bampton reduction of flexible links (see :mod:`kedfem.reduction`).
     """
 
-    def __init__(self, mechanism: Mechanism):
+    def __init__(self, mechanism: Mechanism, reduction=None):
+        from .reduction import CraigBampton
         mechanism.validate()
+        if reduction is not None and not isinstance(reduction, CraigBampton):
+            raise InputError(f"reduction must be kf.CraigBampton(...) or None, got {reduction!r}")
+        if reduction is not None and reduction.links is not None:
+            for name in reduction.links:
+                if name not in mechanism.links or mechanism.links[name].rigid:
+                    raise InputError(f"CraigBampton: '{name}' is not a flexible link of {mechanism.name}")
+        self.reduction = reduction
+        self.blocks: list[dict] = []  # Craig-Bampton blocks, one per reduced link
         self.mech = mechanism
         self.points: list[PointDof] = []
         self.rots: list[RotDof] = []
@@ -380,7 +395,23 @@ class FEModel:
             node_rots = [ra]
             pa = np.array(mech.joints[lk.a].at)
             e1 = (np.array(mech.joints[lk.b].at) - pa) / lk.length
+            reduced = self.reduction is not None and self.reduction.applies_to(lk)
+            if reduced:
+                from .reduction import craig_bampton_basis
+                Psi, Phi, om = craig_bampton_basis(lk, self.reduction.modes)
+                bi = len(self.blocks)
+                mcols = tuple(self._new_q(f"{lk.name}.eta{j + 1}") for j in range(Phi.shape[1]))
+                blk = {"link": lk.name, "Psi": Psi, "Phi": Phi, "omega": om, "modal": mcols,
+                       "bounds": None, "pts": [], "rots": []}
+                self.blocks.append(blk)
             for i in range(1, ne):
+                if reduced:
+                    node_pts.append(self._add_point(PointDof(
+                        "cb", f"{lk.name}.n{i}", (), loc=("member", lk.name, lk.a, i * le * e1),
+                        block=bi, node=i - 1)))
+                    node_rots.append(self._add_rot(RotDof("cb", f"{lk.name}.n{i}.theta", (), lk.name,
+                                                          block=bi, node=i - 1)))
+                    continue
                 qx = self._new_q(f"{lk.name}.n{i}.ux")
                 qy = self._new_q(f"{lk.name}.n{i}.uy")
                 qt = self._new_q(f"{lk.name}.n{i}.theta")
@@ -391,6 +422,8 @@ class FEModel:
             self.end_rot[(lk.name, lk.b)] = rb
             node_pts.append(self.joint_point[lk.b])
             node_rots.append(rb)
+            if reduced:
+                blk["bounds"] = (node_pts[0], ra, node_pts[-1], rb)
             for i in range(ne):
                 ids.append((node_pts[i], node_rots[i], node_pts[i + 1], node_rots[i + 1]))
                 rows["link"].append(li)
@@ -475,41 +508,130 @@ class FEModel:
         _k, member, origin, offset = loc
         return motion.point(member, origin, offset)
 
-    def point_forms(self, motion: Motion):
-        """Affine forms of all point entities over the motion's time nodes.
+    # Every entity has an affine *form* over the time nodes:
+    #   x_entity(t) = C(t) q[cols] + p(t),  with C (nt|1, width, k) and p (nt, width)
+    # plus the first and second time derivatives of C and p (None when constant).
+
+    def entity_cols(self, kind: str, eid: int) -> tuple[int, ...]:
+        """Global q columns an entity depends on (fixed over the cycle)."""
+        key = (kind, eid)
+        cache = self.__dict__.setdefault("_cols_cache", {})
+        if key in cache:
+            return cache[key]
+        if kind == "P":
+            pd = self.points[eid]
+            if pd.kind == "fixed":
+                out = ()
+            elif pd.kind in ("free", "slider"):
+                out = pd.cols
+            elif pd.kind == "body":
+                out = self.entity_cols("P", pd.parent) + (self.rots[pd.phi].cols if pd.phi >= 0 else ())
+            else:
+                out = self._block_cols(pd.block)
+        else:
+            rd = self.rots[eid]
+            out = self._block_cols(rd.block) if rd.kind == "cb" else rd.cols
+        cache[key] = out
+        return out
+
+    def _block_cols(self, b: int) -> tuple[int, ...]:
+        blk = self.blocks[b]
+        pa, ra, pb, rb = blk["bounds"]
+        return (self.entity_cols("P", pa) + self.entity_cols("R", ra) + self.entity_cols("P", pb)
+                + self.entity_cols("R", rb) + blk["modal"])
+
+    def entity_dynamic(self, kind: str, eid: int) -> tuple[bool, bool]:
+        """(moving, offset): whether the entity's map varies in time / carries an offset."""
+        if kind == "P":
+            pd = self.points[eid]
+            if pd.kind == "body":
+                mv, of = self.entity_dynamic("P", pd.parent)
+                return (pd.phi >= 0 or mv), of
+            if pd.kind == "cb":
+                return True, self._block_offset(pd.block)
+            return False, False
+        rd = self.rots[eid]
+        if rd.kind == "cb":
+            return True, self._block_offset(rd.block)
+        return False, rd.offset
+
+    def _block_offset(self, b: int) -> bool:
+        blk = self.blocks[b]
+        pa, ra, pb, rb = blk["bounds"]
+        passive = not self.mech.links[blk["link"]].kinematic
+        return passive or any(self.entity_dynamic(k, e)[1] for k, e in (("P", pa), ("R", ra), ("P", pb), ("R", rb)))
+
+    def has_moving_maps(self) -> bool:
+        """True if some constraint map depends on time (rotating rigid members, reduced links)."""
+        return (any(self.entity_dynamic("P", i)[0] for i in range(len(self.points)))
+                or bool(self.blocks))
+
+    def has_offsets(self) -> bool:
+        """True if some entity or passive link end carries a prescribed offset."""
+        return (any(rd.offset for rd in self.rots)
+                or any(not lk.kinematic for lk in self.mech.flexible_links))
+
+    def entity_forms(self, motion: Motion) -> dict:
+        """Affine forms of all entities over the motion's time nodes.
 
         Returns
         -------
-        list of (cols, C, C1, C2, moving)
-            ``C`` (nt or 1, 2, k) and its time derivatives (None if constant).
+        dict
+            ``{"P": [...], "R": [...]}``, each item ``(cols, C, C1, C2, p, p1, p2)``
+            with ``C`` (nt or 1, width, k) and its time derivatives (None if
+            constant), and the prescribed offset ``p`` (nt, width) with its
+            derivatives (None if there is none).
         """
-        forms: list = [None] * len(self.points)
+        nt = motion.n
+        rp, rp1, rp2 = self.rot_offsets(motion) if any(rd.offset for rd in self.rots) else (None,) * 3
+        pforms: list = [None] * len(self.points)
+        rforms: list = [None] * len(self.rots)
         locs: dict = {}
+        blocks: dict = {}
 
         def loc_state(pid):
             if pid not in locs:
                 locs[pid] = self._loc_motion(self.points[pid].loc, motion)
             return locs[pid]
 
-        def form(pid):
-            if forms[pid] is not None:
-                return forms[pid]
-            pd = self.points[pid]
-            if pd.kind == "fixed":
-                out = ((), np.zeros((1, 2, 0)), None, None, False)
-            elif pd.kind == "free":
-                out = (pd.cols, np.eye(2)[None], None, None, False)
-            elif pd.kind == "slider":
-                out = (pd.cols, np.asarray(pd.axis, float).reshape(1, 2, 1), None, None, False)
+        def rform(rid):
+            if rforms[rid] is not None:
+                return rforms[rid]
+            rd = self.rots[rid]
+            if rd.kind == "cb":
+                out = block(rd.block)[rd.node][1]
             else:
-                pc, pC, pC1, pC2, pmov = form(pd.parent)
+                k = len(rd.cols)
+                C = np.ones((1, 1, k))
+                if rd.offset:
+                    p = (rp[:, rid:rid + 1], rp1[:, rid:rid + 1], rp2[:, rid:rid + 1])
+                else:
+                    p = (None, None, None)
+                out = (rd.cols, C, None, None) + p
+            rforms[rid] = out
+            return out
+
+        def pform(pid):
+            if pforms[pid] is not None:
+                return pforms[pid]
+            pd = self.points[pid]
+            none3 = (None, None, None)
+            if pd.kind == "fixed":
+                out = ((), np.zeros((1, 2, 0)), None, None) + none3
+            elif pd.kind == "free":
+                out = (pd.cols, np.eye(2)[None], None, None) + none3
+            elif pd.kind == "slider":
+                out = (pd.cols, np.asarray(pd.axis, float).reshape(1, 2, 1), None, None) + none3
+            elif pd.kind == "cb":
+                out = block(pd.block)[pd.node][0]
+            else:
+                pc, pC, pC1, pC2, pp, pp1, pp2 = pform(pd.parent)
                 if pd.phi < 0:
-                    out = (pc, pC, pC1, pC2, pmov)
+                    out = (pc, pC, pC1, pC2, pp, pp1, pp2)
                 else:
                     r, v, a = loc_state(pid)
                     rr, rv, ra = loc_state(pd.parent) if self.points[pd.parent].loc else (0, 0, 0)
                     rho, rho1, rho2 = r - rr, v - rv, a - ra
-                    nt = rho.shape[0]
                     col = (rho @ _S.T)[..., None]
                     col1 = (rho1 @ _S.T)[..., None]
                     col2 = (rho2 @ _S.T)[..., None]
@@ -519,13 +641,110 @@ class FEModel:
                     bC2 = z if pC2 is None else np.broadcast_to(pC2, z.shape)
                     cols = tuple(pc) + tuple(self.rots[pd.phi].cols)
                     out = (cols, np.concatenate([bC, col], -1), np.concatenate([bC1, col1], -1),
-                           np.concatenate([bC2, col2], -1), True)
-            forms[pid] = out
+                           np.concatenate([bC2, col2], -1), pp, pp1, pp2)
+            pforms[pid] = out
             return out
 
+        def block(b):
+            if b not in blocks:
+                blocks[b] = self._block_forms(b, motion, pform, rform)
+            return blocks[b]
+
         for pid in range(len(self.points)):
-            form(pid)
-        return forms
+            pform(pid)
+        for rid in range(len(self.rots)):
+            rform(rid)
+        return {"P": pforms, "R": rforms}
+
+    def _block_forms(self, b, motion, pform, rform):
+        """Forms of the interior nodes of a Craig-Bampton block (see kedfem.reduction).
+
+        Interior (global) ``x_i = W x_b + Z eta`` with ``W = T_i^T Psi T_b``,
+        ``Z = T_i^T Phi`` and ``T' = -w S_hat T``:
+        ``W' = w T_i^T D1 T_b``, ``W'' = a T_i^T D1 T_b + w^2 T_i^T D2 T_b`` with
+        ``D1 = S_hat Psi - Psi S_hat``, ``D2 = S_hat D1 - D1 S_hat``.
+        """
+        blk = self.blocks[b]
+        nt = motion.n
+        lk = self.mech.links[blk["link"]]
+        Psi, Phi = blk["Psi"], blk["Phi"]
+        ni = Psi.shape[0]
+        # boundary map x_b = E_b q_b + p_b (nt, 6, m_b) and offsets (nt, 6)
+        forms = [pform(blk["bounds"][0]), rform(blk["bounds"][1]), pform(blk["bounds"][2]),
+                 rform(blk["bounds"][3])]
+        mb = sum(len(f[0]) for f in forms)
+        Eb = np.zeros((3, nt, 6, mb))  # value, first, second derivative
+        pb = np.zeros((3, nt, 6))
+        row = col = 0
+        for f in forms:
+            cols, C, C1, C2, p, p1, p2 = f
+            w, k = C.shape[1], C.shape[2]
+            for d, X in enumerate((C, C1, C2)):
+                if X is not None:
+                    Eb[d, :, row:row + w, col:col + k] = X
+            for d, X in enumerate((p, p1, p2)):
+                if X is not None:
+                    pb[d, :, row:row + w] += X
+            row += w
+            col += k
+        if not lk.kinematic:  # passive link: chord stretch at end b
+            sp_ = self.chord_stretch(lk.name, motion)
+            for d in range(3):
+                pb[d, :, 3:5] += sp_[d]
+        # frame rotation of the link
+        i = motion.member_names.index(lk.name)
+        th, w, al = motion.theta[:, i], motion.omega[:, i], motion.alpha[:, i]
+        c, s_ = np.cos(th), np.sin(th)
+        Sb = np.zeros((6, 6))
+        Sb[0:2, 0:2] = _S
+        Sb[3:5, 3:5] = _S
+        Si = np.kron(np.eye(ni // 3), np.pad(_S, ((0, 1), (0, 1))))
+        D1 = Si @ Psi - Psi @ Sb
+        D2 = Si @ D1 - D1 @ Sb
+
+        # rotations node by node: T3 = blockdiag(R^T, 1); X (ni, c) -> T_i^T X per 3-row block
+        T3 = np.zeros((nt, 3, 3))
+        T3[:, 0, 0], T3[:, 0, 1], T3[:, 1, 0], T3[:, 1, 1], T3[:, 2, 2] = c, s_, -s_, c, 1.0
+        Tb = np.zeros((nt, 6, 6))
+        Tb[:, 0:3, 0:3] = T3
+        Tb[:, 3:6, 3:6] = T3
+        T3t = np.swapaxes(T3, 1, 2)
+        nn = ni // 3
+
+        def rot_in(X):  # T_i^T X for X (ni, c) or (nt, ni, c) -> (nt, ni, c)
+            Xb = X.reshape(nn, 3, -1) if X.ndim == 2 else X.reshape(nt, nn, 3, -1)
+            if X.ndim == 2:
+                Y = np.einsum("tij,njc->tnic", T3t, Xb)
+            else:
+                Y = np.einsum("tij,tnjc->tnic", T3t, Xb)
+            return Y.reshape(nt, ni, -1)
+
+        w3, a3 = w[:, None, None], al[:, None, None]
+        W0 = rot_in(Psi) @ Tb
+        TD1 = rot_in(D1) @ Tb
+        W1 = w3 * TD1
+        W2 = a3 * TD1 + w3**2 * (rot_in(D2) @ Tb)
+        Z0 = rot_in(Phi)
+        SPhi = rot_in(Si @ Phi)
+        Z1 = w3 * SPhi
+        Z2 = a3 * SPhi + w3**2 * rot_in(Si @ Si @ Phi)
+        E0 = np.concatenate([W0 @ Eb[0], Z0], axis=-1)
+        E1 = np.concatenate([W1 @ Eb[0] + W0 @ Eb[1], Z1], axis=-1)
+        E2 = np.concatenate([W2 @ Eb[0] + 2 * W1 @ Eb[1] + W0 @ Eb[2], Z2], axis=-1)
+        has_p = self._block_offset(b)
+        if has_p:
+            P0 = (W0 @ pb[0][..., None])[..., 0]
+            P1 = (W1 @ pb[0][..., None] + W0 @ pb[1][..., None])[..., 0]
+            P2 = (W2 @ pb[0][..., None] + 2 * W1 @ pb[1][..., None] + W0 @ pb[2][..., None])[..., 0]
+        cols = self._block_cols(b)
+        out = []
+        for j in range(ni // 3):
+            r = slice(3 * j, 3 * j + 2)
+            t = slice(3 * j + 2, 3 * j + 3)
+            pt = (cols, E0[:, r], E1[:, r], E2[:, r]) + ((P0[:, r], P1[:, r], P2[:, r]) if has_p else (None,) * 3)
+            ro = (cols, E0[:, t], E1[:, t], E2[:, t]) + ((P0[:, t], P1[:, t], P2[:, t]) if has_p else (None,) * 3)
+            out.append((pt, ro))
+        return out
 
     def rot_offsets(self, motion: Motion):
         """Prescribed rotation offsets ``(p, p1, p2)``, each (nt, n_rots)."""
@@ -549,86 +768,65 @@ class FEModel:
         return p, p1, p2
 
     def _static_layout(self, gname: str):
-        """Column map, constant part of E and the moving slots of a group."""
+        """Column map, constant part of E and the dynamic slots of a group.
+
+        The q columns of an element are the union of its entities' columns
+        (each global column once), so that element matrices in q-space stay as
+        small as the element's actual couplings.
+        """
         if gname in self._static_cache:
             return self._static_cache[gname]
         g = self.groups[gname]
-        forms = self._form_cols()
         n_el = g.n
         per_el = []
         for e in range(n_el):
-            cols = []
+            ucols: list[int] = []
             for slot, kind in enumerate(g.layout):
                 eid = g.ids[e, slot]
-                if eid < 0:
-                    continue
-                cols.extend(forms[kind][eid])
-            per_el.append(cols)
+                if eid >= 0:
+                    for c in self.entity_cols(kind, eid):
+                        if c not in ucols:
+                            ucols.append(c)
+            per_el.append(ucols)
         m = max([len(c) for c in per_el], default=0)
         m = max(m, 1)
         colarr = np.full((n_el, m), len(self.dof_labels), dtype=int)
         E0 = np.zeros((n_el, g.d, m))
-        moving = []   # (element, row0, col0, point id, k)
-        offsets = []  # (element, row, rot id) or (element, row, -1 - passive link index)
+        dynamic = []  # (element, row, positions, kind, entity id, width, moving)
+        passive = []  # (element, row, passive link name): chord stretch at end b
         passive_end = {}
         if gname == "beam":
-            for li, name in enumerate(self.beam.links):
+            for name in self.beam.links:
                 if not self.mech.links[name].kinematic:
-                    passive_end[self.beam.first[name] + self.beam.count[name] - 1] = li
+                    passive_end[self.beam.first[name] + self.beam.count[name] - 1] = name
         for e in range(n_el):
+            ucols = per_el[e]
+            colarr[e, :len(ucols)] = ucols
+            index = {c: i for i, c in enumerate(ucols)}
             row = 0
-            c = 0
             for slot, kind in enumerate(g.layout):
                 eid = g.ids[e, slot]
                 width = 2 if kind == "P" else 1
                 if eid >= 0:
-                    ecols = forms[kind][eid]
-                    k = len(ecols)
-                    colarr[e, c:c + k] = ecols
-                    if kind == "P":
-                        if self._point_moving(eid):
-                            moving.append((e, row, c, eid, k))
-                        else:
-                            E0[e, row:row + 2, c:c + k] = self._const_C(eid)
-                    else:
-                        if k:
-                            E0[e, row, c] = 1.0
-                        if self.rots[eid].offset:
-                            offsets.append((e, row, eid))
-                    c += k
+                    pos = np.array([index[c] for c in self.entity_cols(kind, eid)], dtype=int)
+                    moving, offset = self.entity_dynamic(kind, eid)
+                    if moving or offset:
+                        dynamic.append((e, row, pos, kind, eid, width, moving))
+                    if not moving and pos.size:
+                        C = self._const_C(kind, eid)
+                        for j, pj in enumerate(pos):
+                            E0[e, row:row + width, pj] += C[:, j]
                 if kind == "P" and slot == 2 and e in passive_end:
-                    offsets.append((e, row, -1 - passive_end[e]))
+                    passive.append((e, row, passive_end[e]))
                 row += width
-        out = (colarr, E0, moving, offsets)
+        out = (colarr, E0, dynamic, passive)
         self._static_cache[gname] = out
         return out
 
-    def _form_cols(self):
-        if not hasattr(self, "_cols_cache"):
-            pcols = []
-            for pid in range(len(self.points)):
-                pcols.append(self._point_cols(pid))
-            rcols = [rd.cols for rd in self.rots]
-            self._cols_cache = {"P": pcols, "R": rcols}
-        return self._cols_cache
-
-    def _point_cols(self, pid):
-        pd = self.points[pid]
-        if pd.kind in ("fixed",):
-            return ()
-        if pd.kind in ("free", "slider"):
-            return pd.cols
-        base = self._point_cols(pd.parent)
-        return tuple(base) + (tuple(self.rots[pd.phi].cols) if pd.phi >= 0 else ())
-
-    def _point_moving(self, pid):
-        pd = self.points[pid]
-        if pd.kind != "body":
-            return False
-        return pd.phi >= 0 or self._point_moving(pd.parent)
-
-    def _const_C(self, pid):
-        pd = self.points[pid]
+    def _const_C(self, kind, eid):
+        if kind == "R":
+            return np.ones((1, len(self.rots[eid].cols)))
+        pd = self.points[eid]
         while pd.kind == "body":
             pd = self.points[pd.parent]
         if pd.kind == "free":
@@ -636,14 +834,6 @@ class FEModel:
         if pd.kind == "slider":
             return np.asarray(pd.axis, float).reshape(2, 1)
         return np.zeros((2, 0))
-
-    def has_moving_maps(self) -> bool:
-        """True if some constraint map depends on time (rotating rigid members)."""
-        return any(self._point_moving(i) for i in range(len(self.points)))
-
-    def has_offsets(self) -> bool:
-        """True if some rotation or passive link end carries a prescribed offset."""
-        return any(rd.offset for rd in self.rots) or any(not lk.kinematic for lk in self.mech.flexible_links)
 
     def chord_stretch(self, link: str, motion: Motion):
         """Prescribed end displacement of a passive link and its time derivatives.
@@ -669,41 +859,48 @@ class FEModel:
         p2 = l2[:, None] * e1 + 2 * l1[:, None] * w * e2 + ext * (al * e2 - w**2 * e1)
         return p, p1, p2
 
-    def group_map(self, gname: str, motion: Motion, forms=None, offsets=None) -> GroupMap:
-        """Constraint map of a group over the motion's time nodes."""
-        colarr, E0, moving, offs = self._static_layout(gname)
+    def group_map(self, gname: str, motion: Motion, forms=None) -> GroupMap:
+        """Constraint map of a group over the motion's time nodes.
+
+        ``forms`` (from :meth:`entity_forms` on the same motion) may be passed
+        to share them between groups.
+        """
+        colarr, E0, dynamic, passive = self._static_layout(gname)
         nt = motion.n
         n_el, d, m = E0.shape
+        if (dynamic or passive) and forms is None:
+            forms = self.entity_forms(motion)
+        moving = any(dyn[6] for dyn in dynamic)
         if moving:
-            if forms is None:
-                forms = self.point_forms(motion)
             E = np.broadcast_to(E0, (nt, n_el, d, m)).copy()
             E1 = np.zeros_like(E)
             E2 = np.zeros_like(E)
-            for e, row, c, pid, k in moving:
-                _cols, C, C1, C2, _mv = forms[pid]
-                E[:, e, row:row + 2, c:c + k] = C
-                E1[:, e, row:row + 2, c:c + k] = C1
-                E2[:, e, row:row + 2, c:c + k] = C2
         else:
             E = E0[None]
             E1 = E2 = None
         p = p1 = p2 = None
-        if offs:
-            if offsets is None:
-                offsets = self.rot_offsets(motion)
-            po, po1, po2 = offsets
+        if any(forms[kind][eid][4] is not None for (_e, _r, _p, kind, eid, _w, _mv) in dynamic) or passive:
             p = np.zeros((nt, n_el, d))
             p1 = np.zeros_like(p)
             p2 = np.zeros_like(p)
-            for e, row, rid in offs:
-                if rid >= 0:
-                    p[:, e, row] = po[:, rid]
-                    p1[:, e, row] = po1[:, rid]
-                    p2[:, e, row] = po2[:, rid]
-                else:
-                    p[:, e, row:row + 2], p1[:, e, row:row + 2], p2[:, e, row:row + 2] = \
-                        self.chord_stretch(self.beam.links[-1 - rid], motion)
+        for e, row, pos, kind, eid, width, mv in dynamic:
+            _cols, C, C1, C2, q0, q1, q2 = forms[kind][eid]
+            rs = slice(row, row + width)
+            if mv:
+                for j, pj in enumerate(pos):
+                    E[:, e, rs, pj] += C[..., j]
+                    if C1 is not None:
+                        E1[:, e, rs, pj] += C1[..., j]
+                        E2[:, e, rs, pj] += C2[..., j]
+            if q0 is not None:
+                p[:, e, rs] += q0
+                p1[:, e, rs] += q1
+                p2[:, e, rs] += q2
+        for e, row, name in passive:
+            a, b_, c_ = self.chord_stretch(name, motion)
+            p[:, e, row:row + 2] += a
+            p1[:, e, row:row + 2] += b_
+            p2[:, e, row:row + 2] += c_
         return GroupMap(colarr, E, E1, E2, p, p1, p2)
 
     # --------------------------------------------------------------- scatter

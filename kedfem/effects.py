@@ -552,7 +552,7 @@ class Assembler:
         Q = acc.get(gname, "Q")
         if M is None and C is None and K is None and Q is None:
             return None
-        gm = model.group_map(gname, mo, self._forms, self._offsets)
+        gm = model.group_map(gname, mo, self._forms)
         E = gm.E
         Et = np.swapaxes(E, -1, -2)
         out = {}
@@ -605,12 +605,12 @@ class Assembler:
         self._pmass_terms(mo, acc)
         self._spring_terms(mo, acc)
         self._load_terms(mo, acc)
-        self._forms = self.model.point_forms(mo) if self.model.has_moving_maps() else None
-        self._offsets = self.model.rot_offsets(mo) if self.model.has_offsets() else None
+        dyn = self.model.has_moving_maps() or self.model.has_offsets()
+        self._forms = self.model.entity_forms(mo) if dyn else None
         try:
             out = {g: self._transform(g, acc, mo, nt) for g in self.model.groups}
         finally:
-            self._forms = self._offsets = None
+            self._forms = None
         return mo, {g: o for g, o in out.items() if o}
 
     def system(self, idx=None) -> SystemTerms:
@@ -688,8 +688,8 @@ class Assembler:
             self._rigid_terms(mo, acc)
             self._pmass_terms(mo, acc)
             self._spring_terms(mo, acc)
-            self._forms = self.model.point_forms(mo) if self.model.has_moving_maps() else None
-            self._offsets = None
+            dyn = self.model.has_moving_maps() or self.model.has_offsets()
+            self._forms = self.model.entity_forms(mo) if dyn else None
             nt, N = idx.size, self.model.n_dof
             M = np.zeros((nt, N, N))
             Ks = np.zeros((nt, N, N))

@@ -62,7 +62,7 @@ def assemble_scene(scene: Scene):
     assembler : Assembler
     """
     motion = kinematics(scene.mech, steps=scene.steps)
-    model = FEModel(scene.mech)
+    model = FEModel(scene.mech, reduction=scene.reduction)
     asm = Assembler(model, motion, scene.effects, damping=scene.damping)
     return motion, model, asm
 
@@ -98,7 +98,7 @@ def solve(scene: Scene) -> PeriodicResult:
     t0 = time.perf_counter()
     motion = kinematics(scene.mech, steps=scene.steps)
     t1 = time.perf_counter()
-    model = FEModel(scene.mech)
+    model = FEModel(scene.mech, reduction=scene.reduction)
     asm = Assembler(model, motion, scene.effects, damping=scene.damping)
     n, N = motion.n, model.n_dof
     kw = {"delta": scene.delta} if scene.delta is not None else {}

@@ -312,11 +312,11 @@ class PeriodicResult:
         """
         forms = self._cache.get("forms")
         if forms is None:
-            forms = self.model.point_forms(self.motion)
+            forms = self.model.entity_forms(self.motion)["P"]
             self._cache["forms"] = forms
         if joint not in self.model.joint_point:
             raise InputError(f"unknown joint '{joint}' (joints: {', '.join(self.model.joint_point)})")
-        cols, C, _c1, _c2, _mv = forms[self.model.joint_point[joint]]
+        cols, C, *_rest = forms[self.model.joint_point[joint]]
         if not cols:
             return np.zeros((self.n, 2))
         U = self.U if U is None else np.broadcast_to(np.asarray(U, float), self.U.shape)

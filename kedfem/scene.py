@@ -54,6 +54,8 @@ class Scene:
         Anderson acceleration).
     delta : float, optional
         Accuracy asked from each matrix exponential (default: matched to the hold).
+    reduction : CraigBampton, optional
+        Craig-Bampton reduction of the flexible links (see :mod:`kedfem.reduction`).
     name : str
         Label used in reports.
     """
@@ -68,6 +70,7 @@ class Scene:
     max_iter: int = 50
     nonlinear_method: str = "fixed-point"
     delta: float | None = None
+    reduction: object = None
     name: str = ""
     _mech: Mechanism = field(init=False, repr=False, compare=False)
 
@@ -92,6 +95,9 @@ class Scene:
         if self.delta is not None and not (isinstance(self.delta, (int, float, np.floating))
                                            and 0 < self.delta < 1):
             raise InputError(f"{owner}: delta must be a number in (0, 1), got {self.delta!r}")
+        from .reduction import CraigBampton
+        if self.reduction is not None and not isinstance(self.reduction, CraigBampton):
+            raise InputError(f"{owner}: reduction must be kf.CraigBampton(...) or None, got {self.reduction!r}")
         if not self.mechanism.drives:
             raise InputError(f"{owner}: mechanism '{self.mechanism.name}' has no drive; a periodic "
                              "response needs a cycle (use kf.static_response or kf.natural_frequencies "

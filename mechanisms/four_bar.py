@@ -66,8 +66,10 @@ def build(ground: float = 0.254, crank: float = 0.108, coupler: float = 0.2794,
         False makes the crank rigid.
     """
     mat = kf.Material(E=E, rho=rho)
-    sec_crank = kf.Section(A=crank_A, I=crank_EI / E)
-    sec_link = kf.Section(A=link_A, I=link_EI / E)
+    # the published A and EI are those of 25.4 mm wide rectangular strips (h = sqrt(12 I / A):
+    # 4.24 mm crank, 1.60 mm coupler and follower); the extreme fibre is at c = h / 2
+    sec_crank = kf.Section(A=crank_A, I=crank_EI / E, c=0.5 * math.sqrt(12 * crank_EI / E / crank_A))
+    sec_link = kf.Section(A=link_A, I=link_EI / E, c=0.5 * math.sqrt(12 * link_EI / E / link_A))
     A = np.array([crank * math.cos(crank_angle), crank * math.sin(crank_angle)])
     O4 = np.array([ground, 0.0])
     B = _coupler_point(A, O4, coupler, follower)
