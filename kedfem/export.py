@@ -98,9 +98,14 @@ def _fmt(x) -> str:
 
 
 def dof_unit(label: str) -> str:
-    """SI unit of a DOF label (``m`` for translations, ``rad`` for rotations)."""
+    """SI unit of a DOF label: ``m`` (translations), ``rad`` (rotations) or
+    ``kg^0.5 m`` (mass-normalised modal coordinates ``etaK`` of reduced links)."""
     last = label.rsplit(".", 1)[-1].split("@")[0]
-    return "rad" if last in ("theta", "phi") else "m"
+    if last in ("theta", "phi"):
+        return "rad"
+    if last.startswith("eta"):
+        return "kg^0.5 m"
+    return "m"
 
 
 # ---------------------------------------------------------------------- CSV

@@ -63,9 +63,13 @@ def test_global_equations_match_link_frame_equations_four_bar():
         for e in range(b.L.size):
             i = mo.member_names.index(b.links[b.link[e]])
             th, om, al = mo.theta[n, i], mo.omega[n, i], mo.alpha[n, i]
-            E = gm.E[0, e]
             cols = gm.cols[e]
+            E = gm.E[min(n, gm.E.shape[0] - 1), e]
             x, x1, x2 = E @ qp[cols], E @ q1p[cols], E @ q2p[cols]
+            if gm.E1 is not None:  # moving maps (co-rotating interior nodes): x = E q
+                E1, E2 = gm.E1[n, e], gm.E2[n, e]
+                x1 = x1 + E1 @ qp[cols]
+                x2 = x2 + 2 * E1 @ q1p[cols] + E2 @ qp[cols]
             T0, T1, T2 = dT(th, 0), om * dT(th, 1), al * dT(th, 1) + om**2 * dT(th, 2)
             u, u1, u2 = T0 @ x, T0 @ x1 + T1 @ x, T0 @ x2 + 2 * T1 @ x1 + T2 @ x
             f = m_loc[e] @ u2 + 2 * om * ms[e] @ u1 + (al * ms[e] - om**2 * m_loc[e]) @ u

@@ -44,7 +44,7 @@ plots = false
 modes = 2
 scale = 50.0
 every = 2
-dofs = ["rod.n1.uy"]
+dofs = ["rod.n1.v"]
 """
 
 
@@ -69,7 +69,7 @@ def test_good_file_builds_the_scene(tmp_path):
     assert scene.eps == 1e-7 and scene.max_iter == 20 and scene.nonlinear_method == "relaxation"
     assert scene.mech.drives[0].speed == pytest.approx(1000.0 * 2 * math.pi / 60, rel=1e-15)
     assert scene.mech.links["rod"].elements == 4
-    assert out == sf.Outputs(dir=Path("out-here"), plots=False, modes=2, scale=50.0, every=2, dofs=("rod.n1.uy",))
+    assert out == sf.Outputs(dir=Path("out-here"), plots=False, modes=2, scale=50.0, every=2, dofs=("rod.n1.v",))
 
 
 def test_presets_fill_omitted_keys():
@@ -141,7 +141,7 @@ def test_unknown_key_named_with_line_and_suggestion(tmp_path):
     ("scale = 50.0", 'scale = "big"', "output.scale", "auto"),
     ("modes = 2", "modes = 1000", "output.modes", "0 .. 24"),
     ("plots = false", 'plots = "no"', "output.plots", "true or false"),
-    ('dofs = ["rod.n1.uy"]', "dofs = [1, 2]", "output.dofs", "labels"),
+    ('dofs = ["rod.n1.v"]', "dofs = [1, 2]", "output.dofs", "labels"),
 ])
 def test_bad_values_name_key_and_line(tmp_path, old, new, key, words):
     assert old in GOOD
