@@ -146,7 +146,8 @@ class FEModel:
     n_dof : int
         Number of independent elastic DOFs ``N``.
     dof_labels : list of str
-        One label per DOF, e.g. ``"B.ux"`` (joint, global), ``"rod.n3.v"`` (interior node,
+        One label per DOF, e.g. ``"B.ux"`` (joint, global), ``"A.u[crank]"`` (joint, in the
+        frame of its stiffest link), ``"rod.n3.v"`` (interior node,
         transverse in the link frame), ``"rod.n3.theta"``.
     groups : dict of str -> Group
         ``beam``, ``rigid``, ``pmass``, ``spring``, ``tspring``, ``load``.
@@ -347,9 +348,28 @@ class FEModel:
                 self.joint_point[jn] = self._add_point(PointDof("slider", jn, (q,), axis=j.axis,
                                                                 loc=("joint", jn)))
             else:
-                qx = self._new_q(f"{jn}.ux")
-                qy = self._new_q(f"{jn}.uy")
-                self.joint_point[jn] = self._add_point(PointDof("free", jn, (qx, qy), loc=("joint", jn)))
+                frame = self._joint_frame(jn) if self.corotate else None
+                if frame is None:
+                    qx = self._new_q(f"{jn}.ux")
+                    qy = self._new_q(f"{jn}.uy")
+                    self.joint_point[jn] = self._add_point(PointDof("free", jn, (qx, qy), loc=("joint", jn)))
+                else:  # components in the frame of the stiffest flexible link at the joint
+                    qx = self._new_q(f"{jn}.u[{frame}]")
+                    qy = self._new_q(f"{jn}.v[{frame}]")
+                    self.joint_point[jn] = self._add_point(PointDof("corot", jn, (qx, qy),
+                                                                    loc=("member", frame, jn, (0.0, 0.0))))
+
+    def _joint_frame(self, joint: str):
+        """The flexible (kinematic) link at a joint with the largest axial element stiffness."""
+        best, kmax = None, 0.0
+        for name in self.mech.members_at(joint):
+            lk = self.mech.links.get(name)
+            if lk is None or lk.rigid or not lk.kinematic:
+                continue
+            k = lk.material.E * lk.section.A * lk.elements / lk.length
+            if k > kmax:
+                best, kmax = name, k
+        return best
 
     def _end_rotation(self, lk, joint, k, clamp_groups):
         mech = self.mech
