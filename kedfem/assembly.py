@@ -429,7 +429,8 @@ class FEModel:
             reduced = self.reduction is not None and self.reduction.applies_to(lk)
             if reduced:
                 from .reduction import craig_bampton_basis
-                Psi, Phi, om = craig_bampton_basis(lk, self.reduction.modes)
+                Psi, Phi, om = craig_bampton_basis(lk, self.reduction.modes,
+                                                   self.reduction.static_correction)
                 bi = len(self.blocks)
                 mcols = tuple(self._new_q(f"{lk.name}.eta{j + 1}") for j in range(Phi.shape[1]))
                 blk = {"link": lk.name, "Psi": Psi, "Phi": Phi, "omega": om, "modal": mcols,
