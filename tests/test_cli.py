@@ -12,7 +12,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import kedfem as kf
 
 import kedfem
 from kedfem import cli
@@ -52,7 +51,7 @@ def test_default_run_end_to_end(tmp_path):
                  "link_response.png", "frequencies.png", "floquet.png", "response.pvd", "modes.pvd", "summary.txt"):
         assert (dest / name).is_file(), name
         assert name in text
-    assert len(list((dest / "response").glob("*.vtu"))) == kf.default_scene().steps
+    assert len(list((dest / "response").glob("*.vtu"))) == kedfem.default_scene().steps
     assert (dest / "summary.txt").read_text().strip() in text
     # the printed peak table is the CSV's
     with open(dest / "peaks.csv", newline="") as f:
