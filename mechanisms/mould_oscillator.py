@@ -51,11 +51,14 @@ interpretation, chosen because it is the mode that the paper's two named
 non-linearities (leaf-spring geometric non-linearity, balance spring) can
 shift with the stroke.
 
-Default speed: 150 oscillation cycles per minute (2.5 Hz, 15.71 rad/s). Slab
-casters oscillate at about 50-300 cycles/min, most commonly 100-200 (e.g. B. G.
-Thomas, "Continuous Casting of Steel", in Modeling for Casting and
-Solidification Processing, 2001; Brimacombe & Sorimachi's mould oscillation
-practice); 150 cpm is a typical middle value.
+Default speed: 150 oscillation cycles per minute (2.5 Hz, 15.71 rad/s). The paper
+gives no speed. Mechanical oscillators of slab casters run at a few hertz at most;
+ranges of roughly 50 to 250 cycles/min with strokes of a few millimetres are the
+commonly quoted practice (the oscillation-mark literature, e.g. Takeuchi &
+Brimacombe, Metall. Trans. B 1984, studies slab casters in this regime), and the
+paper's own strokes (+-3 to +-5 mm) fit it. We found no citable single value in
+the references given to this project, so 150 cpm is a documented mid-range choice;
+``speed=`` overrides it (and ``kedfem sweep`` scans it, like the paper's Figs. 3-4).
 """
 
 from __future__ import annotations
