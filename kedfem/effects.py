@@ -235,6 +235,7 @@ class Assembler:
         self._k_local = self._beam_stiffness()
         self._m_local = self._beam_mass()
         self._coupling_mats = self._beam_coupling()
+        self._full_maps: dict = {}  # group maps over the whole cycle, for the state terms
 
     # ------------------------------------------------------------- properties
     @property
@@ -721,6 +722,23 @@ class Assembler:
         return (LV * (2.0 * d.zeta * om)[:, None, :]) @ np.swapaxes(LV, -1, -2)
 
     # ----------------------------------------------------------- state terms
+    def _state_map(self, gname, mo):
+        """Group map of ``gname`` over ``mo``; kept when ``mo`` is the whole cycle.
+
+        The non-linear iteration evaluates the state terms over the same cycle
+        at every iterate: the constraint maps (and the entity forms they are
+        built from) depend on the motion only, so they are built once.
+        """
+        if mo is not self.motion:
+            return self.model.group_map(gname, mo)
+        gm = self._full_maps.get(gname)
+        if gm is None:
+            forms = self._full_maps.get("__forms__")
+            if forms is None and (self.model.has_moving_maps() or self.model.has_offsets()):
+                forms = self._full_maps["__forms__"] = self.model.entity_forms(mo)
+            gm = self._full_maps[gname] = self.model.group_map(gname, mo, forms)
+        return gm
+
     def element_state(self, gname, mo, U, V=None):
         """Element DOFs of a group for the trial response ``U, V``.
 
@@ -728,7 +746,7 @@ class Assembler:
         rate ``x'`` (None without ``V``), the part ``E q`` that the unknowns
         carry, and the group map; arrays (nt, n_el, d).
         """
-        gm = self.model.group_map(gname, mo)
+        gm = self._state_map(gname, mo)
         Up = np.concatenate([U, np.zeros((U.shape[0], 1))], axis=1)
         qe = Up[:, gm.cols]  # (nt, n_el, m)
         xq = (gm.E @ qe[..., None])[..., 0]
@@ -760,7 +778,9 @@ class Assembler:
         """
         if idx is None:
             idx = np.arange(self.motion.n)
-        mo = slice_motion(self.motion, idx)
+            mo = self.motion  # the whole cycle: the group maps are reused across iterates
+        else:
+            mo = slice_motion(self.motion, idx)
         nt, N = len(idx), self.model.n_dof
         dK = np.zeros((nt, N, N))
         dQ = np.zeros((nt, N))

@@ -309,10 +309,19 @@ def _check_mass(M: np.ndarray, nodes: np.ndarray) -> None:
         raise _mass_error(Mb, nodes)
 
 
-def _state_parts(M, C, K, Q, nodes):
-    """S = M^-1 K, D = M^-1 C, f = M^-1 Q for the given nodes (constants broadcast)."""
+def _state_parts(M, C, K, Q, nodes, inverse=False):
+    """S = M^-1 K, D = M^-1 C, f = M^-1 Q for the given nodes (constants broadcast).
+
+    A sampled ``M`` is inverted once per node (batched LU with partial
+    pivoting, ``np.linalg.inv``) and the inverses applied by batched matrix
+    products: numpy's stacked ``solve`` runs LAPACK node by node with a copy of
+    every right-hand side and is several times slower for these small blocks
+    (measured 4.9 against 3.0 ms for 91 nodes of 33 DOFs), and the inverse is
+    reused for the linearised terms of the non-linear iteration. The fourth
+    item is the inverses (or, for a constant ``M``, the one inverse; ``None``
+    unless ``inverse=True``).
+    """
     N = Q.shape[-1]
-    L = len(nodes)
     _check_mass(M, nodes if M.ndim == 3 else nodes[:1])
     if M.ndim == 2:
         lu = sla.lu_factor(M)
@@ -325,12 +334,13 @@ def _state_parts(M, C, K, Q, nodes):
 
         S, D = msolve(K), msolve(C)
         f = sla.lu_solve(lu, Q.T).T
-    else:
-        Kb = np.broadcast_to(K, (L, N, N))
-        Cb = np.broadcast_to(C, (L, N, N))
-        R = np.linalg.solve(M, np.concatenate([Kb, Cb, Q[:, :, None]], axis=-1))
-        S, D, f = R[..., :N], R[..., N:2 * N], R[..., 2 * N]
-    return S, D, f
+        Minv = sla.lu_solve(lu, np.eye(N)) if inverse else None
+    else:  # the inverses are needed for S, D, f anyway
+        Minv = np.linalg.inv(M)
+        S = Minv @ K
+        D = Minv @ C
+        f = (Minv @ Q[:, :, None])[..., 0]
+    return S, D, f, Minv
 
 
 def _state_matrix(S, D, dtype=float):
@@ -442,7 +452,8 @@ class _Elements:
         def work(i, lo, hi):
             hi_n = hi + 1 if need_next else hi  # nodes needed by elements lo..hi-1
             part = [X if X.ndim == 2 else X[lo:hi_n] for X in (Mk, Ck, Kk)]
-            S, D, f = _state_parts(*part, Qk[lo:hi_n], sel[lo:hi_n])
+            linearised = Kz is not None or Qz is not None or Cz is not None
+            S, D, f, Minv = _state_parts(*part, Qk[lo:hi_n], sel[lo:hi_n], inverse=linearised)
             if self.hold == "magnus2":
                 S = 0.5 * (S[:-1] + S[1:]) if S.ndim == 3 else S
                 D = 0.5 * (D[:-1] + D[1:]) if D.ndim == 3 else D
@@ -452,23 +463,19 @@ class _Elements:
             S = np.broadcast_to(S, (hi - lo, N, N))
             f0 = f[:hi - lo]
             f1 = f[1:hi - lo + 1] if need_next else None
-            if Kz is not None or Qz is not None or Cz is not None:
+            if linearised:
                 # terms linearised about node k, held over element k (see solve)
-                Mlo = part[0] if part[0].ndim == 2 else part[0][:hi - lo]
-                Mhi = None
-                if need_next and Qz is not None:
-                    Mhi = part[0] if part[0].ndim == 2 else part[0][1:hi - lo + 1]
+                Mlo = Minv if Minv.ndim == 2 else Minv[:hi - lo]       # M^-1 at node k
+                Mhi = Minv if Minv.ndim == 2 else Minv[1:hi - lo + 1]  # M^-1 at node k + 1
                 if Kz is not None:
-                    S = S + np.linalg.solve(np.broadcast_to(Mlo, (hi - lo, N, N)), Kz[lo:hi])
+                    S = S + Mlo @ Kz[lo:hi]
                 if Cz is not None:
-                    D = np.broadcast_to(D, (hi - lo, N, N)) + np.linalg.solve(
-                        np.broadcast_to(Mlo, (hi - lo, N, N)), Cz[lo:hi])
+                    D = D + Mlo @ Cz[lo:hi]
                 if Qz is not None:
-                    f0 = f0 + np.linalg.solve(np.broadcast_to(Mlo, (hi - lo, N, N)),
-                                              Qz[lo:hi, :, None])[..., 0]
+                    qz = Qz[lo:hi, :, None]
+                    f0 = f0 + (Mlo @ qz)[..., 0]
                     if f1 is not None:
-                        f1 = f1 + np.linalg.solve(np.broadcast_to(Mhi, (hi - lo, N, N)),
-                                                  Qz[lo:hi, :, None])[..., 0]
+                        f1 = f1 + (Mhi @ qz)[..., 0]
             delta = self._delta(S)
             Ak, bk, infos[i] = second_order_transition(
                 S, D, self.dt, f0, f1, delta=delta, approximant=self.approximant,

@@ -132,7 +132,7 @@ class PeriodicResult:
         if key in self._cache:
             return self._cache[key]
         sl = self.model.link_elements(link)
-        gm = self.model.group_map("beam", self.motion)
+        gm = self._beam_map()
         Up = np.concatenate([self.U, np.zeros((self.n, 1))], axis=1)
         cols = gm.cols[sl]
         E = gm.E[:, sl]
@@ -144,6 +144,13 @@ class PeriodicResult:
         d = (T @ x[..., None])[..., 0]
         self._cache[key] = d
         return d
+
+    def _beam_map(self):
+        """Constraint map of the beam elements over the cycle (built once per result)."""
+        gm = self._cache.get("beam_map")
+        if gm is None:
+            gm = self._cache["beam_map"] = self.model.group_map("beam", self.motion)
+        return gm
 
     def stations(self, link: str) -> np.ndarray:
         """Node positions (n_el + 1,) along a flexible link, from joint ``a`` [m]."""
@@ -267,7 +274,7 @@ class PeriodicResult:
         """
         lk = self._link(link)
         sl = self.model.link_elements(link)
-        gm = self.model.group_map("beam", self.motion)
+        gm = self._beam_map()
         U = self.U if U is None else np.broadcast_to(np.asarray(U, float), self.U.shape)
         Up = np.concatenate([U, np.zeros((self.n, 1))], axis=1)
         x = (gm.E[:, sl] @ Up[:, gm.cols[sl]][..., None])[..., 0]
@@ -339,7 +346,7 @@ class PeriodicResult:
         return out
 
     # ----------------------------------------------------------- frequencies
-    def frequencies(self, n_modes: int = 4) -> Frequencies:
+    def frequencies(self, n_modes: int = 4, nodes=None) -> Frequencies:
         """Natural frequencies over the cycle at the converged periodic state.
 
         The co-moving-frame matrices of the scene's effects (each link in its
@@ -347,26 +354,45 @@ class PeriodicResult:
         effects at the converged response. ``modal``: undamped eigenanalysis;
         ``state_space``: eigenvalues of the state matrix with the damping and
         the Coriolis coupling.
+
+        Parameters
+        ----------
+        n_modes : int
+            Frequencies per time node.
+        nodes : array_like of int, optional
+            Time nodes to analyse (default all). Equally spaced nodes, e.g.
+            ``range(0, n, n // 36)``, give the cycle means of a fine time grid
+            at a fraction of the cost (an eigenvalue problem per node).
         """
-        key = ("freq", n_modes)
+        if nodes is None:
+            idx = None
+            key = ("freq", n_modes)
+        else:
+            idx = np.asarray(nodes)
+            if idx.ndim != 1 or idx.size == 0 or not np.issubdtype(idx.dtype, np.integer) \
+                    or idx.min() < 0 or idx.max() >= self.n:
+                raise InputError(f"frequencies: nodes must be time node indices in 0..{self.n - 1}, "
+                                 f"got {nodes!r}")
+            key = ("freq", n_modes, tuple(int(i) for i in idx))
         if key in self._cache:
             return self._cache[key]
         from .effects import Assembler
         from .modal import eig_frequencies
         sc = self.scene
         asm = Assembler(self.model, self.motion, sc.effects, damping=sc.damping, frame=True)
-        S = asm.system()
+        S = asm.system(idx)
         K = S.K
         if sc.state_dependent:
             glob = Assembler(self.model, self.motion, sc.effects, damping=sc.damping)
-            _dC, dK, _dQ = glob.state_terms(self.U, self.V)
+            U, V = (self.U, self.V) if idx is None else (self.U[idx], self.V[idx])
+            _dC, dK, _dQ = glob.state_terms(U, V, idx)
             if dK is not None:
                 K = K + dK
         k = min(n_modes, self.model.n_dof)
         fm = eig_frequencies(S.M, K, k)
         N = self.model.n_dof
         Minv = np.linalg.inv(S.M)
-        F = np.zeros((self.n, 2 * N, 2 * N))
+        F = np.zeros((S.M.shape[0], 2 * N, 2 * N))
         F[:, :N, N:] = np.eye(N)
         F[:, N:, :N] = -Minv @ K
         F[:, N:, N:] = -Minv @ S.C
@@ -379,6 +405,6 @@ class PeriodicResult:
         ok = np.isfinite(np.take_along_axis(mag, order, axis=1))
         fs = np.where(ok, np.abs(sel) / (2 * math.pi), np.nan)
         zs = np.where(ok, -sel.real / np.where(ok, np.abs(sel), 1.0), np.nan)
-        out = Frequencies(self.crank_angle, fm, fs, zs)
+        out = Frequencies(self.crank_angle if idx is None else self.crank_angle[idx], fm, fs, zs)
         self._cache[key] = out
         return out
