@@ -39,7 +39,7 @@ __all__ = ["main", "build_parser"]
 
 log = logging.getLogger(__name__)
 
-COMMANDS = ("run", "validate", "sweep", "export", "list")
+COMMANDS = ("run", "validate", "sweep", "export", "list", "bench")
 EXIT_ERROR = 2
 EXIT_STRICT = 3
 
@@ -103,6 +103,8 @@ def _overrides(args) -> dict:
         o["speed_rpm"] = args.speed
     if getattr(args, "hold", None):
         o["hold"] = args.hold
+    if getattr(args, "accuracy", None):
+        o["accuracy"] = args.accuracy
     if getattr(args, "effects", None) is not None:
         o["effects"] = args.effects
     return o
@@ -131,6 +133,8 @@ def _load(target: str | None, overrides: dict) -> _Loaded:
             kw["steps"] = overrides["steps"]
         if "speed_rpm" in overrides:
             kw["speed"] = overrides["speed_rpm"] * RPM
+        if "accuracy" in overrides:
+            scene = scene.with_accuracy(overrides["accuracy"])
         if "hold" in overrides:
             kw["hold"] = overrides["hold"]
         if "effects" in overrides:
@@ -515,6 +519,8 @@ def build_parser() -> argparse.ArgumentParser:
     scene.add_argument("--speed", type=_speed_arg, metavar="RPM", help="speed of the first drive [rev/min]")
     scene.add_argument("--steps", type=_steps_arg, metavar="N", help="time nodes per cycle")
     scene.add_argument("--hold", choices=("zoh", "foh", "magnus2"), help="hold of the state-space discretisation")
+    scene.add_argument("--accuracy", choices=("fast", "default", "tight"),
+                       help="accuracy preset: steps, hold, eps, delta (explicit --steps/--hold win)")
     scene.add_argument("--effects", type=_effects_arg, metavar="E1,E2,...",
                        help="effects to simulate, comma-separated, or 'all' (kedfem list)")
 
@@ -578,10 +584,25 @@ def build_parser() -> argparse.ArgumentParser:
                    help="written frame to render (default: largest displacement)")
     e.set_defaults(func=_cmd_export)
 
+    b = sub.add_parser("bench", parents=[common], help="accuracy-versus-cost study of the solver knobs",
+                       description="Error of peak deflection, peak stress and fundamental frequency against a "
+                       "converged reference versus wall time, over time elements, hold, exponential accuracy, "
+                       "elements per link, Craig-Bampton modes and the non-linear tolerance, for the "
+                       "slider-crank, the four-bar and the mould oscillator. Writes accuracy_cost.csv, "
+                       ".md and .png (same as benchmarks/accuracy_cost.py). The full study takes ~20 min.")
+    from . import bench as _bench
+    _bench.add_arguments(b)
+    b.set_defaults(func=_cmd_bench)
+
     li = sub.add_parser("list", parents=[common], help="mechanisms, their parameters, and effects",
                         description="List the mechanisms with their parameters and preset scenes, and the effects.")
     li.set_defaults(func=_cmd_list)
     return p
+
+
+def _cmd_bench(args) -> int:
+    from . import bench
+    return bench.run_cli(args.quick, Path(args.out or "kedfem-bench"), bench.parse_mechanisms(args.mechanisms))
 
 
 def _setup_logging(verbose: int) -> None:

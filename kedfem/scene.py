@@ -11,10 +11,22 @@ from .effects import EFFECTS, ModalDamping, Rayleigh, check_effects
 from .errors import InputError
 from .mechanism import Mechanism
 
-__all__ = ["Scene", "HOLDS", "NONLINEAR_METHODS"]
+__all__ = ["Scene", "HOLDS", "NONLINEAR_METHODS", "ACCURACY_PRESETS"]
 
 HOLDS = ("zoh", "foh", "magnus2")
 NONLINEAR_METHODS = ("fixed-point", "relaxation", "anderson")
+
+#: Knobs of ``Scene(accuracy=...)``: ``steps``, ``hold``, ``eps`` and ``delta``
+#: (``None``: matched to the hold). Chosen from the accuracy-versus-cost study
+#: (``benchmarks/accuracy_cost.py``, README "Accuracy versus cost"), which
+#: measures what each preset delivers on the slider-crank, the four-bar and the
+#: mould oscillator.
+ACCURACY_PRESETS: dict[str, dict] = {
+    "fast": dict(steps=90, hold="magnus2", eps=1e-4, delta=1e-8),
+    "default": dict(steps=360, hold="magnus2", eps=1e-6, delta=None),
+    "tight": dict(steps=1440, hold="magnus2", eps=1e-8, delta=None),
+}
+_KNOBS = ("steps", "hold", "eps", "delta")
 
 
 def _int(owner, name, v, lo):
@@ -31,8 +43,9 @@ class Scene:
     ----------
     mechanism : Mechanism
         A driven mechanism.
-    steps : int
-        Number of time nodes (= time elements) over one cycle, >= 3.
+    steps : int, optional
+        Number of time nodes (= time elements) over one cycle, >= 3 (default:
+        from ``accuracy``).
     effects : sequence of str
         Effects to assemble (see :data:`kedfem.effects.EFFECTS`); nothing
         else is assembled, and the response is iterated only if one of them
@@ -40,42 +53,57 @@ class Scene:
     damping : Rayleigh or ModalDamping, optional
         Damping model (``None``: undamped; an undamped system forced near a
         resonance raises :class:`~kedfem.errors.ResonanceError`).
-    hold : {"zoh", "foh", "magnus2"}
-        Hold scheme of the state-space discretisation.
+    hold : {"zoh", "foh", "magnus2"}, optional
+        Hold scheme of the state-space discretisation (default: from ``accuracy``).
     speed : float, optional
         Speed of the first drive [rad/s] (others keep their ratio); default
         the mechanism's own.
-    eps : float
-        Tolerance of the non-linear iteration (the paper's Eq. 21, as a fraction).
+    eps : float, optional
+        Tolerance of the non-linear iteration (the paper's Eq. 21, as a
+        fraction; default: from ``accuracy``).
     max_iter : int
         Largest number of linear solves of the non-linear iteration.
     nonlinear_method : {"fixed-point", "relaxation", "anderson"}
         Iteration scheme (the paper's plain fixed point, under-relaxation, or
         Anderson acceleration).
     delta : float, optional
-        Accuracy asked from each matrix exponential (default: matched to the hold).
+        Accuracy asked from each matrix exponential (default: from
+        ``accuracy``; the presets' ``None`` matches it to the hold).
     reduction : CraigBampton, optional
         Craig-Bampton reduction of the flexible links (see :mod:`kedfem.reduction`).
     name : str
         Label used in reports.
+    accuracy : {"fast", "default", "tight"}
+        Preset of ``steps``, ``hold``, ``eps`` and ``delta`` (see
+        :data:`ACCURACY_PRESETS`); a knob given explicitly wins over the
+        preset. The resolved values are the scene's attributes, so
+        ``dataclasses.replace(scene, accuracy=...)`` keeps them: use
+        :meth:`with_accuracy` to switch presets.
     """
 
     mechanism: Mechanism
-    steps: int = 360
+    steps: int | None = None
     effects: tuple[str, ...] = ("inertia", "coupling")
     damping: Rayleigh | ModalDamping | None = None
-    hold: str = "foh"
+    hold: str | None = None
     speed: float | None = None
-    eps: float = 1e-6
+    eps: float | None = None
     max_iter: int = 50
     nonlinear_method: str = "fixed-point"
     delta: float | None = None
     reduction: object = None
     name: str = ""
+    accuracy: str = "default"
     _mech: Mechanism = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
         owner = "Scene"
+        if self.accuracy not in ACCURACY_PRESETS:
+            raise InputError(f"{owner}: accuracy must be one of {', '.join(ACCURACY_PRESETS)}, "
+                             f"got {self.accuracy!r}")
+        for k, v in ACCURACY_PRESETS[self.accuracy].items():
+            if getattr(self, k) is None:
+                object.__setattr__(self, k, v)
         if not isinstance(self.mechanism, Mechanism):
             raise InputError(f"{owner}: mechanism must be a kedfem.Mechanism, got {type(self.mechanism).__name__}")
         _int(owner, "steps", self.steps, 3)
@@ -115,6 +143,11 @@ class Scene:
                                  "a periodic response needs a cycle")
             mech = self.mechanism
         object.__setattr__(self, "_mech", mech)
+
+    def with_accuracy(self, accuracy: str) -> "Scene":
+        """The same scene with the ``steps``, ``hold``, ``eps`` and ``delta`` of another preset."""
+        import dataclasses
+        return dataclasses.replace(self, accuracy=accuracy, **{k: None for k in _KNOBS})
 
     @property
     def mech(self) -> Mechanism:

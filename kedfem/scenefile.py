@@ -12,6 +12,7 @@ Layout (every key is optional except ``mechanism.name``; units in the key
 names or in brackets)::
 
     name = "slider-crank at 1000 rpm"   # label used in reports
+    accuracy = "default"                # "fast" | "default" | "tight": steps, hold, eps, delta
     steps = 180                         # time nodes per cycle, 3 .. MAX_STEPS
     speed_rpm = 1000.0                  # speed of the first drive [rev/min]
     hold = "foh"                        # "zoh" | "foh" | "magnus2"
@@ -50,7 +51,10 @@ names or in brackets)::
     "mechanism.elements" = [4, 8]
 
 The defaults of ``steps``, ``effects`` and ``damping`` depend on the
-mechanism (:data:`PRESETS`); ``kedfem list`` prints them.
+mechanism (:data:`PRESETS`); ``kedfem list`` prints them. With ``accuracy``
+the preset's ``steps``, ``hold``, ``eps`` and ``delta``
+(:data:`kedfem.scene.ACCURACY_PRESETS`) replace the mechanism's; keys given in
+the file still win.
 """
 
 from __future__ import annotations
@@ -71,7 +75,7 @@ import numpy as np
 
 from .effects import EFFECTS, ModalDamping, Rayleigh
 from .errors import InputError, KedError
-from .scene import HOLDS, NONLINEAR_METHODS, Scene
+from .scene import ACCURACY_PRESETS, HOLDS, NONLINEAR_METHODS, Scene
 
 __all__ = ["SceneFileError", "Outputs", "Preset", "PRESETS", "SceneSpec", "load_scene", "load_sweep",
            "load_spec", "read_scene_file", "scene_from_dict", "parse_scene", "with_overrides", "mechanism_parameters",
@@ -388,7 +392,7 @@ def check_steps(v, key: str = "steps", source: str | None = None) -> int:
 
 
 # ------------------------------------------------------------------ sections
-_TOP_KEYS = ("name", "steps", "speed_rpm", "hold", "effects", "mechanism", "damping", "solver", "output",
+_TOP_KEYS = ("name", "accuracy", "steps", "speed_rpm", "hold", "effects", "mechanism", "damping", "solver", "output",
              "sweep")
 _DAMPING_KEYS = ("model", "alpha", "beta", "zeta")
 _SOLVER_KEYS = ("eps", "max_iter", "nonlinear_method", "delta")
@@ -557,7 +561,7 @@ def _outputs(ctx, v) -> Outputs:
     return Outputs(**kw)
 
 
-_SWEEPABLE_TOP = ("steps", "speed_rpm", "hold", "effects", "name")
+_SWEEPABLE_TOP = ("accuracy", "steps", "speed_rpm", "hold", "effects", "name")
 
 
 def _flatten(d: Mapping, prefix=""):
@@ -635,15 +639,21 @@ def parse_scene(data: Mapping, *, source: str | None = None, text: str | None = 
     key, params, mech = _mechanism(ctx, data)
     pre = preset(key)
     kw: dict[str, Any] = {}
+    # an accuracy preset replaces the mechanism's steps, hold and solver knobs
+    # (keys given in the file still win)
+    accuracy = _str(ctx, "accuracy", data["accuracy"], tuple(ACCURACY_PRESETS)) if "accuracy" in data else None
+    if accuracy is not None:
+        kw["accuracy"] = accuracy
     kw["steps"] = _int(ctx, "steps", data["steps"], 3, MAX_STEPS,
                        " (more nodes cost time and memory without changing the answer; "
-                       "see kedfem.scenefile.MAX_STEPS)") if "steps" in data else pre.steps
+                       "see kedfem.scenefile.MAX_STEPS)") if "steps" in data else (
+                           None if accuracy else pre.steps)
     if "speed_rpm" in data:
         kw["speed"] = _float(ctx, "speed_rpm", data["speed_rpm"], nonzero=True, unit=" [rev/min]") * RPM
-    kw["hold"] = _str(ctx, "hold", data["hold"], HOLDS) if "hold" in data else pre.hold
+    kw["hold"] = _str(ctx, "hold", data["hold"], HOLDS) if "hold" in data else (None if accuracy else pre.hold)
     kw["effects"] = _effects(ctx, data["effects"]) if "effects" in data else pre.effects
     kw["damping"] = _damping(ctx, data.get("damping"), pre.damping)
-    kw.update(dict(pre.solver))
+    kw.update({k: v for k, v in pre.solver if not (accuracy and k in ("eps", "delta"))})
     kw.update(_solver(ctx, data.get("solver")))
     kw["name"] = _str(ctx, "name", data["name"]) if "name" in data else _default_name(key, params, mech)
     outputs = _outputs(ctx, data.get("output"))

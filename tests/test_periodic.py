@@ -48,17 +48,27 @@ def independent_discrete(M, C, K, Q, T, hold):
         F = np.block([[np.zeros((N, N)), np.eye(N)], [-Mi @ at(K, k), -Mi @ at(C, k)]])
         return F, np.concatenate([np.zeros(N), Mi @ Q[k % n]])
 
+    def mean_state(k):
+        """magnus2: F of the element-mean M, C, K; forcing at both ends with the mean M."""
+        Mm, Cm, Km = (0.5 * (at(X, k) + at(X, k + 1)) for X in (M, C, K))
+        Mi = np.linalg.inv(Mm)
+        F = np.block([[np.zeros((N, N)), np.eye(N)], [-Mi @ Km, -Mi @ Cm]])
+        z = np.zeros(N)
+        return F, np.concatenate([z, Mi @ Q[k % n]]), np.concatenate([z, Mi @ Q[(k + 1) % n]])
+
     big = np.zeros((n * m, n * m))
     rhs = np.zeros(n * m)
     for k in range(n):
         F0, g0 = state(k)
         F1, g1 = state(k + 1)
+        if hold == "magnus2":
+            F0, g0, g1 = mean_state(k)
         if hold == "zoh":
             X = np.zeros((m + 1, m + 1))
             X[:m, :m] = F0 * dt
             X[:m, m] = g0 * dt
         else:
-            F = 0.5 * (F0 + F1) if hold == "magnus2" else F0
+            F = F0
             X = np.zeros((m + 2, m + 2))
             X[:m, :m] = F * dt
             X[:m, m] = (g1 - g0) * dt
