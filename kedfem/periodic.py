@@ -325,23 +325,16 @@ def _state_parts(M, C, K, Q, nodes, inverse=False):
     every right-hand side and is several times slower for these small blocks
     (measured 4.9 against 3.0 ms for 91 nodes of 33 DOFs), and the inverse is
     reused for the linearised terms of the non-linear iteration. The fourth
-    item is the inverses (or, for a constant ``M``, the one inverse; ``None``
-    unless ``inverse=True``).
+    item is the inverses (for a constant ``M`` the one inverse, always formed).
     """
     N = Q.shape[-1]
     _check_mass(M, nodes if M.ndim == 3 else nodes[:1])
     if M.ndim == 2:
-        lu = sla.lu_factor(M)
-
-        def msolve(X):
-            if X.ndim == 2:
-                return sla.lu_solve(lu, X)
-            Xs = np.moveaxis(X, 0, 1).reshape(N, -1)  # (N, L*N): one factorization for all
-            return np.moveaxis(sla.lu_solve(lu, Xs).reshape(N, X.shape[0], -1), 1, 0)
-
-        S, D = msolve(K), msolve(C)
-        f = sla.lu_solve(lu, Q.T).T
-        Minv = sla.lu_solve(lu, np.eye(N)) if inverse else None
+        # one inverse, applied by (batched) matrix products: faster than
+        # triangular solves with L*N right-hand sides (0.1 s of 0.8 s at N = 100)
+        Minv = sla.lu_solve(sla.lu_factor(M), np.eye(N))
+        S, D = Minv @ K, Minv @ C
+        f = Q @ Minv.T
     else:  # the inverses are needed for S, D, f anyway
         Minv = np.linalg.inv(M)
         S = Minv @ K
@@ -647,7 +640,13 @@ def _resolve_shapes(Ms, Cs, Ks, Qs, n):
     return n_, N_
 
 
-def solve(M, C, K, Q, period: float, hold: str = "zoh", *, n: int | None = None,
+def solve(*args, **kwargs) -> PeriodicSolution:
+    # the docstring is _solve's (set below)
+    with _blas_one_thread():
+        return _solve(*args, **kwargs)
+
+
+def _solve(M, C, K, Q, period: float, hold: str = "zoh", *, n: int | None = None,
           delta: float | None = None, method: str = "auto", approximant: str = "taylor",
           memory_budget: float = 256e6, max_condition: float = MAX_CONDITION,
           workers: int | None = None, Kz=None, Qz=None, Cz=None) -> PeriodicSolution:
@@ -812,7 +811,8 @@ def solve(M, C, K, Q, period: float, hold: str = "zoh", *, n: int | None = None,
                 sA, sb = _tree_groups(A, bvec, seg)
             else:
                 sA, sb = None, None
-            Pc, dc = _tree_groups(A, bvec, L) if sA is None else _tree_groups(sA, sb, len(sb))
+            Pc, dc = (_tree_parallel(A, bvec, elems.workers) if sA is None
+                      else _tree_parallel(sA, sb, elems.workers))
             Pc, dc = Pc[0], dc[0]
             if sA is not None:
                 seg_A.append(sA)
@@ -942,6 +942,36 @@ def solve(M, C, K, Q, period: float, hold: str = "zoh", *, n: int | None = None,
         max_squarings=int(elems.max_squarings),
         n_exponentials=int(elems.n_exponentials), condition=float(cond), passes=passes,
         timings=MappingProxyType(timings))
+
+
+solve.__doc__ = (_solve.__doc__ or "") + """
+    Notes
+    -----
+    All linear algebra runs on one BLAS thread per kedfem worker: the matrices
+    are small (2N up to a few hundred) and OpenBLAS's own threading of them was
+    2-60x slower than one thread whenever the other cores were busy (measured
+    on a shared 2-core machine, ``benchmarks/peers.py``).
+"""
+
+
+def _tree_parallel(A, b, workers):
+    """``_tree_groups(A, b, len(A))`` with the parts composed in parallel worker threads.
+
+    Each worker multiplies with one BLAS thread: OpenBLAS's own threads on these
+    small products wait for a time slice on every call when the machine is shared
+    (measured 10-40x slower condensation at N = 100 under load).
+    """
+    parts = _split(A.shape[0], workers, min_part=16)
+    res = [None] * len(parts)
+
+    def work(i, lo, hi):
+        res[i] = _tree_groups(A[lo:hi], b[lo:hi], hi - lo)
+
+    _run_parallel(work, parts)
+    P, d = res[0]
+    for Pi, di in res[1:]:
+        P, d = Pi @ P, np.einsum("gij,gj->gi", Pi, d) + di
+    return P, d
 
 
 def _tree_groups(A, b, g):

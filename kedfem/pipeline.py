@@ -95,6 +95,14 @@ def solve(scene: Scene) -> PeriodicResult:
     if not isinstance(scene, Scene):
         from .errors import InputError
         raise InputError(f"solve: expected a kf.Scene, got {type(scene).__name__}")
+    # one BLAS thread: the batched small-matrix work (eigh of the modal
+    # damping, products, the periodic solve) ran 10-40x slower on OpenBLAS's
+    # threads whenever the other core was busy (benchmarks/peers.py)
+    with periodic._blas_one_thread():
+        return _solve(scene)
+
+
+def _solve(scene: Scene) -> PeriodicResult:
     t0 = time.perf_counter()
     motion = kinematics(scene.mech, steps=scene.steps)
     t1 = time.perf_counter()

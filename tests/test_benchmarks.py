@@ -28,12 +28,13 @@ def test_quick_study_writes_csv_table_and_plot(quick_study, capsys):
     assert {r["mechanism"] for r in rows} == set(bench.CASES)
     assert {"steps", "delta", "elements", "cb", "eps", "preset:fast"} <= {r["knob"] for r in rows}
     for r in rows:
-        for k in ("time_s", "err", "err_deflection", "err_stress", "err_frequency", "err_hist_stress"):
+        for k in ("time_s", "err", "err_hist", "err_deflection", "err_stress", "err_frequency", "err_hist_stress"):
             assert math.isfinite(float(r[k])) and float(r[k]) >= 0, (r["knob"], k)
-        # err is the worst of its parts
-        parts = [float(r[k]) for k in ("err_deflection", "err_stress", "err_frequency", "err_hist_deflection",
-                                       "err_hist_stress")]
+        # err and err_hist are the worst of their parts
+        parts = [float(r[k]) for k in ("err_deflection", "err_stress", "err_frequency")]
         assert float(r["err"]) == pytest.approx(max(parts), rel=1e-5)
+        hist = [float(r[k]) for k in ("err_hist_deflection", "err_hist_stress")]
+        assert float(r["err_hist"]) == pytest.approx(max(hist), rel=1e-5)
     md = (out / "accuracy_cost.md").read_text()
     assert "For 1 %, 0.1 %, 0.01 % error you need" in md and "| slider-crank" in md
     png = out / "accuracy_cost.png"
@@ -47,10 +48,14 @@ def test_quick_study_errors_fall_with_time_elements(quick_study):
         e = {int(r["steps"]): float(r["err"]) for r in rows
              if r["mechanism"] == mech and r["knob"] == "steps" and r["hold"] == "magnus2"}
         assert e[90] < 0.5 * e[36], (mech, e)
-    # slider-crank magnus2 is second order: 36 -> 90 elements cut the error >= 4x
-    e = {int(r["steps"]): float(r["err"]) for r in rows
-         if r["mechanism"] == "slider_crank" and r["knob"] == "steps" and r["hold"] == "magnus2"}
+    # slider-crank: magnus2 is second order (36 -> 90 elements cut the error >= 4x); zoh's
+    # histories only first order (half-element lag), so magnus2's history error is far smaller
+    sc = [r for r in rows if r["mechanism"] == "slider_crank" and r["knob"] == "steps"]
+    e = {int(r["steps"]): float(r["err"]) for r in sc if r["hold"] == "magnus2"}
     assert e[90] < e[36] / 4
+    hz = {int(r["steps"]): float(r["err_hist"]) for r in sc if r["hold"] == "zoh"}
+    hm = {int(r["steps"]): float(r["err_hist"]) for r in sc if r["hold"] == "magnus2"}
+    assert hz[90] > 0.6 * hz[36] / 2.5 and hm[90] < hz[90] / 10, (hz, hm)
     cb = [r for r in rows if r["knob"] == "cb"]
     assert cb and all(float(r["err"]) < 1e-2 for r in cb)
 
@@ -97,3 +102,14 @@ def test_accuracy_presets_rank_on_the_slider_crank():
         errs[name] = np.abs(w - ref[:: len(ref) // len(w)]).max() / np.abs(ref).max()
     assert errs["fast"] > errs["default"] > errs["tight"], errs
     assert errs["fast"] < 0.05 and errs["tight"] < 1e-4, errs
+
+
+def test_flop_counts_by_hand():
+    from kedfem import flops
+    assert flops.matmul_flops(10) == 2000.0 and flops.matmul_flops(2, 3, 4) == 48.0
+    # 4 exponentials of 6x6, 5 approximant products each, squarings 0, 1, 2, 3 -> 20 + 6 products
+    assert flops.expm_flops(6, 5, [0, 1, 2, 3], approximant="taylor") == pytest.approx(26 * 2 * 6 ** 3)
+    # Pade adds an LU (2/3 m^3) and an m-column solve (2 m^3) per matrix
+    assert flops.expm_flops(6, 5, [0], approximant="pade") == pytest.approx(5 * 432 + 144 + 432)
+    with pytest.raises(kf.InputError, match="approximant"):
+        flops.expm_flops(6, 5, [0], approximant="chebyshev")
