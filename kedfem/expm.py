@@ -196,6 +196,10 @@ def balance(A: np.ndarray, max_iter: int = 30) -> tuple[np.ndarray, np.ndarray]:
     nb = absA.shape[0]
     idx = np.arange(m)
     absA[:, idx, idx] = 0.0
+    # entries below 1e-150 of the largest do not steer the scaling (a subnormal
+    # entry would ask for factors 2^+-537 whose ratios overflow)
+    big = absA.reshape(nb, -1).max(axis=1)
+    absA[absA < (1e-150 * big)[:, None, None]] = 0.0
     x = np.zeros((nb, m))  # log2 of d
 
     def offnorm(xx):
@@ -214,7 +218,8 @@ def balance(A: np.ndarray, max_iter: int = 30) -> tuple[np.ndarray, np.ndarray]:
         c = Bm.sum(axis=1)  # column sums
         ok = (r > 0) & (c > 0)
         with np.errstate(divide="ignore", invalid="ignore"):
-            step = np.where(ok, np.round(0.5 * np.log2(np.where(ok, r / np.where(c > 0, c, 1), 1.0))), 0.0)
+            step = np.where(ok, np.round(0.5 * (np.log2(np.where(ok, r, 1.0)) - np.log2(np.where(ok, c, 1.0)))),
+                            0.0)
         step[~active] = 0.0
         if not np.any(step):
             break

@@ -385,3 +385,11 @@ def test_exponential_integrals_map_linear_forcing():
     Ar, br = _augmented_reference(F, dt, G @ q0, G @ q1)
     assert rel(A, Ar) < 1e-13
     assert rel(G0 @ q0 + G1 @ (q1 - q0), br) < 1e-13
+
+
+def test_balance_ignores_subnormal_entries():
+    """Found by hypothesis: a subnormal entry made the balancing ratio overflow (RuntimeWarning)."""
+    A = np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 5e-324, 0.0, 0.0]).reshape(3, 3)
+    for approximant in ("pade", "taylor"):
+        E = expm(A, approximant=approximant)
+        assert np.allclose(E, sla.expm(A), rtol=1e-15, atol=1e-15)
