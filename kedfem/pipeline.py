@@ -52,6 +52,18 @@ class _Chunks:
         return self._get(idx).Q
 
 
+def _constant_or_sampled(X: np.ndarray) -> np.ndarray:
+    """``X[0]`` when every time node holds exactly the same matrix, else ``X``.
+
+    A time-invariant scene (every body translating, or none moving) then takes
+    the periodic solver's constant-matrix path: one exponential instead of one
+    per element (about 10x faster on the exciter).
+    """
+    if X.ndim == 3 and X.shape[0] > 1 and np.array_equal(X, np.broadcast_to(X[0], X.shape)):
+        return X[0]
+    return X
+
+
 def assemble_scene(scene: Scene):
     """Kinematics, FE model and assembler of a scene (no solve).
 
@@ -136,7 +148,8 @@ def _solve(scene: Scene) -> PeriodicResult:
             sol = nl.solution
             converged, iters, hist = bool(nl.converged), int(nl.iterations), tuple(float(h) for h in nl.history)
         else:
-            sol = periodic.solve(terms.M, terms.C, terms.K, terms.Q, motion.period, hold=scene.hold, **kw)
+            M, C, K = (_constant_or_sampled(X) for X in (terms.M, terms.C, terms.K))
+            sol = periodic.solve(M, C, K, terms.Q, motion.period, hold=scene.hold, **kw)
             converged, iters, hist = True, 1, ()
         t3 = time.perf_counter()
     timings = Timings(kinematics=t1 - t0, assembly=t2 - t1, solve=t3 - t2, total=t3 - t0)

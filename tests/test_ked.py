@@ -207,3 +207,22 @@ def test_magnus2_keeps_a_damped_six_bar_stable_at_coarse_steps(steps):
     assert frozen.stable
     res = kf.solve(kf.Scene(m, hold="magnus2", **kw))
     assert res.stable and np.abs(res.floquet_multipliers).max() < 1.0
+
+
+def test_time_invariant_scene_takes_the_constant_matrix_path():
+    """The exciter's M, C, K do not vary: kf.solve passes them as constants (one exponential);
+    the answer is the sampled-matrix solve of the same discretisation."""
+    from kedfem import periodic
+    from kedfem.pipeline import _constant_or_sampled, assemble_scene
+    sc = kf.Scene(mechanisms.build("exciter"), steps=72, effects=("inertia", "coupling", "springs"),
+                  damping=kf.ModalDamping(0.02), hold="foh")
+    mo, _model, asm = assemble_scene(sc)
+    S = asm.system()
+    assert all(_constant_or_sampled(X).ndim == 2 for X in (S.M, S.C, S.K))
+    sampled = periodic.solve(S.M, S.C, S.K, S.Q, mo.period, hold="foh")
+    assert sampled.n_exponentials == 72
+    res = kf.solve(sc)
+    assert np.abs(res.U - sampled.U).max() <= 1e-9 * np.abs(sampled.U).max()
+    # a time-varying scene keeps its samples
+    mo2, _m2, asm2 = assemble_scene(kf.Scene(mechanisms.build("slider_crank", elements=2), steps=12))
+    assert _constant_or_sampled(asm2.system().K).ndim == 3
