@@ -550,3 +550,14 @@ def test_approximant_and_workers_do_not_change_the_answer():
         periodic.solve(M, C, K, Q, TV_T, approximant="chebyshev")
     with pytest.raises(InputError, match="workers"):
         periodic.solve(M, C, K, Q, TV_T, workers=0)
+
+
+def test_large_condition_without_multiplier_near_one_is_solved_by_cyclic_lu():
+    """cond(I - Phi) above max_condition with every Floquet multiplier far from 1 is non-normality,
+    not resonance: solved by sparse LU (forced here by a tiny max_condition), same answer."""
+    M, C, K, Q = tv_sampled(64)
+    ref = periodic.solve(M, C, K, Q, TV_T, hold="magnus2")
+    assert ref.method == "condensation" and np.abs(ref.floquet_multipliers - 1).min() > periodic.RESONANCE_GAP
+    sol = periodic.solve(M, C, K, Q, TV_T, hold="magnus2", max_condition=1.0)
+    assert sol.method == "cyclic-lu" and sol.residual < 1e-12
+    assert np.abs(sol.U - ref.U).max() <= 1e-10 * np.abs(ref.U).max()
