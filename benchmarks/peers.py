@@ -87,8 +87,6 @@ import warnings
 import numpy as np
 import scipy
 import scipy.linalg as sla
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from scipy.integrate import solve_ivp
 from scipy.interpolate import CubicSpline
 from threadpoolctl import threadpool_info, threadpool_limits
@@ -101,6 +99,10 @@ from kedfem.expm import second_order_transition
 from kedfem.pipeline import assemble_scene
 from kedfem.validation import modal_superposition
 from mechanisms import exciter, slider_crank
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import periodic_vs_scipy as pvs  # noqa: E402  the plain-SciPy and paper baselines
+from periodic_vs_scipy import condense_loop, cyclic_spsolve  # noqa: E402
 
 RESULTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results")
 NE = 72  # evaluation grid of the equal-accuracy studies: every 5 deg of crank
@@ -427,70 +429,12 @@ def chain(N, n):
 
 def scipy_elements(M, C, K, Q):
     """A_k, b_k by scipy.linalg.expm of the augmented zoh matrix, one element at a time."""
-    n, N = Q.shape
-    m, dt = 2 * N, T_CHAIN / n
-    A = np.empty((n, m, m))
-    b = np.empty((n, m))
-    X = np.zeros((m + 1, m + 1))
-    X[:N, N:m] = np.eye(N) * dt
-    for k in range(n):
-        R = np.linalg.solve(M, np.column_stack([K[k], C, Q[k]])) * dt
-        X[N:m, :N] = -R[:, :N]
-        X[N:m, N:m] = -R[:, N:m]
-        X[N:m, m] = R[:, m]
-        E = sla.expm(X)
-        A[k] = E[:m, :m]
-        b[k] = E[:m, m]
-    return A, b
-
-
-def condense_loop(A, b):
-    """Condensation Eq. 13-16 in a Python loop; states at the nodes (n, m)."""
-    n, m = b.shape
-    Phi, d = np.eye(m), np.zeros(m)
-    for k in range(n):
-        Phi = A[k] @ Phi
-        d = A[k] @ d + b[k]
-    z = np.linalg.solve(np.eye(m) - Phi, d)
-    Z = np.empty((n, m))
-    for k in range(n):
-        Z[k] = z
-        z = A[k] @ z + b[k]
-    return Z
-
-
-def cyclic_spsolve(A, b):
-    """The whole block-cyclic system A_k z_k - z_{k+1} = -b_k by scipy.sparse spsolve."""
-    n, m = b.shape
-    ii = np.arange(n * m).reshape(n, m)
-    rows = np.concatenate([np.repeat(ii, m, axis=1).ravel(), ii.ravel()])
-    cols = np.concatenate([np.tile(ii, (1, m)).ravel(), np.roll(ii, -1, axis=0).ravel()])
-    vals = np.concatenate([A.ravel(), -np.ones(n * m)])
-    S = sp.csc_matrix((vals, (rows, cols)), shape=(n * m, n * m))
-    return spla.spsolve(S, -b.ravel()).reshape(n, m)
+    return pvs.scipy_elements(M, C, K, Q, T_CHAIN)
 
 
 def paper_literal(M, C, K, Q, tol=1e-16):
-    """Taylor series per element (Eq. 6, 9-10) and condensation (Eq. 13-16), Python loops."""
-    n, N = Q.shape
-    m, dt = 2 * N, T_CHAIN / n
-    I = np.eye(m)
-    Mi = np.linalg.inv(M)
-    G = np.vstack([np.zeros((N, N)), Mi])
-    A = np.empty((n, m, m))
-    b = np.empty((n, m))
-    for k in range(n):
-        F = np.block([[np.zeros((N, N)), np.eye(N)], [-Mi @ K[k], -Mi @ C]])
-        Ak, Sk, term = I.copy(), I.copy(), I.copy()
-        for i in range(1, 300):
-            term = (term @ F) * (dt / i)
-            Ak += term
-            Sk += term / (i + 1)
-            if np.abs(term).max() <= tol * np.abs(Ak).max():
-                break
-        A[k] = Ak
-        b[k] = dt * (Sk @ (G @ Q[k]))
-    return condense_loop(A, b)
+    """Taylor series per element (Eq. 6, 9-10) and condensation (Eq. 13-16), Python loops; (n, 2N)."""
+    return condense_loop(*pvs.paper_elements(M, C, K, Q, T_CHAIN, tol))
 
 
 def kedfem_chain(M, C, K, Q, budget=256e6):

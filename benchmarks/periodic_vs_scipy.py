@@ -105,69 +105,89 @@ def arrays(N, n):
 
 
 # ------------------------------------------------------------------ baselines
-def scipy_baseline(M, C, K, Q, progress=None):
+# (also used by benchmarks/peers.py)
+def scipy_elements(M, C, K, Q, period=T):
+    """A_k, b_k by scipy.linalg.expm of the augmented zoh matrix, one element at a time."""
     n, N = Q.shape
-    t0 = time.perf_counter()
-    m = 2 * N
-    dt = T / n
-    blocks = np.empty((n, m, m))
-    rhs = np.empty((n, m))
+    m, dt = 2 * N, period / n
+    A = np.empty((n, m, m))
+    b = np.empty((n, m))
     X = np.zeros((m + 1, m + 1))
     X[:N, N:m] = np.eye(N) * dt
     for k in range(n):
-        MiKCQ = np.linalg.solve(M, np.column_stack([K[k], C, Q[k]]))
-        X[N:m, :N] = -MiKCQ[:, :N] * dt
-        X[N:m, N:m] = -MiKCQ[:, N:2 * N] * dt
-        X[N:m, m] = MiKCQ[:, 2 * N] * dt
+        R = np.linalg.solve(M, np.column_stack([K[k], C, Q[k]])) * dt
+        X[N:m, :N] = -R[:, :N]
+        X[N:m, N:m] = -R[:, N:m]
+        X[N:m, m] = R[:, m]
         E = sla.expm(X)
-        blocks[k] = E[:m, :m]
-        rhs[k] = -E[:m, m]
-    if progress:
-        with open(progress, "w") as fh:
-            fh.write(f"{time.perf_counter() - t0}")
+        A[k] = E[:m, :m]
+        b[k] = E[:m, m]
+    return A, b
+
+
+def cyclic_spsolve(A, b):
+    """The whole block-cyclic system A_k z_k - z_{k+1} = -b_k by scipy.sparse spsolve; (n, m)."""
+    n, m = b.shape
     ii = np.arange(n * m).reshape(n, m)
     rows = np.concatenate([np.repeat(ii, m, axis=1).ravel(), ii.ravel()])
     cols = np.concatenate([np.tile(ii, (1, m)).ravel(), np.roll(ii, -1, axis=0).ravel()])
-    vals = np.concatenate([blocks.ravel(), -np.ones(n * m)])
-    A = sp.csc_matrix((vals, (rows, cols)), shape=(n * m, n * m))
-    z = spla.spsolve(A, rhs.ravel()).reshape(n, m)
-    return z[:, :N]
+    vals = np.concatenate([A.ravel(), -np.ones(n * m)])
+    S = sp.csc_matrix((vals, (rows, cols)), shape=(n * m, n * m))
+    return spla.spsolve(S, -b.ravel()).reshape(n, m)
+
+
+def condense_loop(A, b):
+    """Condensation Eq. 13-16 (back substitution z_{k+1} = A_k z_k + b_k) in a Python loop; (n, m)."""
+    n, m = b.shape
+    Phi, d = np.eye(m), np.zeros(m)
+    for k in range(n):
+        Phi = A[k] @ Phi
+        d = A[k] @ d + b[k]
+    z = np.linalg.solve(np.eye(m) - Phi, d)
+    Z = np.empty((n, m))
+    for k in range(n):
+        Z[k] = z
+        z = A[k] @ z + b[k]
+    return Z
+
+
+def paper_elements(M, C, K, Q, period=T, tol=1e-16):
+    """A_k, b_k by the paper's truncated Taylor series (Eq. 6, 9-10), one element at a time."""
+    n, N = Q.shape
+    m, dt = 2 * N, period / n
+    I = np.eye(m)
+    Mi = np.linalg.inv(M)
+    G = np.vstack([np.zeros((N, N)), Mi])
+    A = np.empty((n, m, m))
+    b = np.empty((n, m))
+    for k in range(n):
+        F = np.block([[np.zeros((N, N)), np.eye(N)], [-Mi @ K[k], -Mi @ C]])
+        Ak, Sk, term = I.copy(), I.copy(), I.copy()  # Sk = sum F^i dt^i / (i+1)!
+        for i in range(1, 300):
+            term = (term @ F) * (dt / i)
+            Ak += term
+            Sk += term / (i + 1)
+            if np.abs(term).max() <= tol * np.abs(Ak).max():
+                break
+        A[k] = Ak
+        b[k] = dt * (Sk @ (G @ Q[k]))
+    return A, b
+
+
+def scipy_baseline(M, C, K, Q, progress=None):
+    """Plain SciPy: expm loop, then spsolve of the whole cyclic system; U (n, N)."""
+    N = Q.shape[1]
+    t0 = time.perf_counter()
+    A, b = scipy_elements(M, C, K, Q)
+    if progress:
+        with open(progress, "w") as fh:
+            fh.write(f"{time.perf_counter() - t0}")
+    return cyclic_spsolve(A, b)[:, :N]
 
 
 def paper_literal(M, C, K, Q, tol=1e-16):
-    n, N = Q.shape
-    m = 2 * N
-    dt = T / n
-    I = np.eye(m)
-    As = np.empty((n, m, m))
-    bs = np.empty((n, m))
-    for k in range(n):
-        Mi = np.linalg.inv(M)
-        F = np.block([[np.zeros((N, N)), np.eye(N)], [-Mi @ K[k], -Mi @ C]])
-        G = np.vstack([np.zeros((N, N)), Mi])
-        A = I.copy()
-        S = I.copy()  # sum F^i dt^i / (i+1)!
-        term = I.copy()
-        for i in range(1, 200):
-            term = term @ F * (dt / i)
-            A += term
-            S += term / (i + 1)
-            if np.abs(term).max() <= tol * np.abs(A).max():
-                break
-        As[k] = A
-        bs[k] = dt * (S @ (G @ Q[k]))
-    # condensation (Eq. 13-16), back substitution z_{k+1} = A_k z_k + b_k
-    Phi = I.copy()
-    d = np.zeros(m)
-    for k in range(n):
-        Phi = As[k] @ Phi
-        d = As[k] @ d + bs[k]
-    z = np.linalg.solve(I - Phi, d)
-    U = np.empty((n, N))
-    for k in range(n):
-        U[k] = z[:N]
-        z = As[k] @ z + bs[k]
-    return U
+    """The paper's method: Taylor series per element and condensation, Python loops; U (n, N)."""
+    return condense_loop(*paper_elements(M, C, K, Q, tol=tol))[:, :Q.shape[1]]
 
 
 def _scipy_child(N, n, repeats, progress):

@@ -483,6 +483,15 @@ class _Runner:
         return row
 
 
+def _case_names(mechanisms) -> list[str]:
+    """The study's mechanisms (default all); an unknown name is an :class:`InputError`."""
+    names = list(CASES) if mechanisms is None else list(mechanisms)
+    for nm in names:
+        if nm not in CASES:
+            raise InputError(f"unknown mechanism {nm!r}; the study knows {', '.join(CASES)}")
+    return names
+
+
 def run_study(quick: bool = False, mechanisms=None, progress: Callable[[str], None] | None = None
               ) -> StudyResult:
     """Run the accuracy-versus-cost study.
@@ -500,10 +509,7 @@ def run_study(quick: bool = False, mechanisms=None, progress: Callable[[str], No
     -------
     StudyResult
     """
-    names = list(CASES) if mechanisms is None else list(mechanisms)
-    for nm in names:
-        if nm not in CASES:
-            raise InputError(f"unknown mechanism {nm!r}; the study knows {', '.join(CASES)}")
+    names = _case_names(mechanisms)
     plans = _plans(quick)
     res = StudyResult(quick=quick, machine=machine_info())
     run = _Runner(res, progress, repeats=not quick)
@@ -915,10 +921,7 @@ def run_cli(quick: bool, out: Path, mechanisms=None, plot_path: Path | None = No
     plot_path : Path, optional
         Where to write the Pareto plot.
     """
-    if mechanisms is not None:
-        for nm in mechanisms:
-            if nm not in CASES:
-                raise InputError(f"unknown mechanism {nm!r}; the study knows {', '.join(CASES)}")
+    _case_names(mechanisms)  # before anything is printed
     print(f"accuracy-versus-cost study{' (quick)' if quick else ''}: {machine_info()}", flush=True)
     res = run_study(quick=quick, mechanisms=mechanisms, progress=lambda msg: print(msg, flush=True))
     paths = write_outputs(res, Path(out), plot_path)

@@ -236,6 +236,7 @@ class Assembler:
         self._m_local = self._beam_mass()
         self._coupling_mats = self._beam_coupling()
         self._full_maps: dict = {}  # group maps over the whole cycle, for the state terms
+        self._full_forms = None     # the entity forms they are built from
 
     # ------------------------------------------------------------- properties
     @property
@@ -733,10 +734,9 @@ class Assembler:
             return self.model.group_map(gname, mo)
         gm = self._full_maps.get(gname)
         if gm is None:
-            forms = self._full_maps.get("__forms__")
-            if forms is None and (self.model.has_moving_maps() or self.model.has_offsets()):
-                forms = self._full_maps["__forms__"] = self.model.entity_forms(mo)
-            gm = self._full_maps[gname] = self.model.group_map(gname, mo, forms)
+            if self._full_forms is None and (self.model.has_moving_maps() or self.model.has_offsets()):
+                self._full_forms = self.model.entity_forms(mo)
+            gm = self._full_maps[gname] = self.model.group_map(gname, mo, self._full_forms)
         return gm
 
     def element_state(self, gname, mo, U, V=None):

@@ -462,9 +462,8 @@ class _Elements:
                 # discrete system spuriously unstable (a six-bar: |mu| 1e17).
                 avg = [X if X.ndim == 2 else 0.5 * (X[:-1] + X[1:]) for X in part]
                 Qe = Qk[lo:hi_n]
-                S, D, _f, Minv = _state_parts(*avg, Qe[:hi - lo], sel[lo:hi], inverse=True)
+                S, D, f0, Minv = _state_parts(*avg, Qe[:hi - lo], sel[lo:hi], inverse=True)
                 Mlo = Mhi = Minv  # the same (element-mean) M^-1 at both ends
-                f0 = Qe[:hi - lo] @ Minv.T if Minv.ndim == 2 else (Minv @ Qe[:hi - lo, :, None])[..., 0]
                 f1 = Qe[1:] @ Minv.T if Minv.ndim == 2 else (Minv @ Qe[1:, :, None])[..., 0]
             else:
                 S, D, f, Minv = _state_parts(*part, Qk[lo:hi_n], sel[lo:hi_n], inverse=linearised)

@@ -29,6 +29,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from kedfem.errors import InputError
+from reference import augmented_transition
 from kedfem.expm import (affine_exponential, balance, expm, exponential_integrals,
                          pade_coefficients, pade_degree, pade_error_bound,
                          second_order_transition, taylor_expm)
@@ -336,19 +337,7 @@ def test_expm_input_validation():
 
 # ------------------------------------------------ element discretization
 def _augmented_reference(F, dt, g0, g1):
-    m = F.shape[0]
-    if g1 is None:
-        X = np.zeros((m + 1, m + 1))
-        X[:m, :m] = F * dt
-        X[:m, m] = g0 * dt
-    else:
-        X = np.zeros((m + 2, m + 2))
-        X[:m, :m] = F * dt
-        X[:m, m] = (g1 - g0) * dt
-        X[:m, m + 1] = g0 * dt
-        X[m, m + 1] = 1.0
-    E = spla.expm(X)
-    return E[:m, :m], E[:m, -1]
+    return augmented_transition(F, dt, g0, g1, expm=spla.expm)
 
 
 @pytest.mark.parametrize("hold", ["zoh", "foh"])

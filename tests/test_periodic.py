@@ -18,11 +18,11 @@ import warnings
 
 import numpy as np
 import pytest
-import scipy.linalg as sla
 from scipy.integrate import solve_ivp
 
 from kedfem import periodic
 from kedfem.errors import InputError, InstabilityWarning, ResonanceError, SingularMassError
+from reference import augmented_transition
 
 
 def rel(a, b):
@@ -63,22 +63,11 @@ def independent_discrete(M, C, K, Q, T, hold):
         F1, g1 = state(k + 1)
         if hold == "magnus2":
             F0, g0, g1 = mean_state(k)
-        if hold == "zoh":
-            X = np.zeros((m + 1, m + 1))
-            X[:m, :m] = F0 * dt
-            X[:m, m] = g0 * dt
-        else:
-            F = F0
-            X = np.zeros((m + 2, m + 2))
-            X[:m, :m] = F * dt
-            X[:m, m] = (g1 - g0) * dt
-            X[:m, m + 1] = g0 * dt
-            X[m, m + 1] = 1.0
-        E = sla.expm(X)
-        big[k * m:(k + 1) * m, k * m:(k + 1) * m] = E[:m, :m]
+        Ak, bk = augmented_transition(F0, dt, g0, None if hold == "zoh" else g1)
+        big[k * m:(k + 1) * m, k * m:(k + 1) * m] = Ak
         kk = (k + 1) % n
         big[k * m:(k + 1) * m, kk * m:(kk + 1) * m] -= np.eye(m)
-        rhs[k * m:(k + 1) * m] = -E[:m, -1]
+        rhs[k * m:(k + 1) * m] = -bk
     z = np.linalg.solve(big, rhs).reshape(n, m)
     return z[:, :N], z[:, N:]
 
