@@ -1,11 +1,11 @@
 """kedfem: finite-element Kineto-ElastoDynamics of planar elastic linkages."""
 
-from .errors import (ConvergenceWarning, InputError, InstabilityWarning, KedError,
+from .errors import (AccuracyWarning, ConvergenceWarning, InputError, InstabilityWarning, KedError,
                      KinematicsError, MobilityError, OptionalDependencyError, ResonanceError,
                      SingularMassError)
 from .materials import Material, Section
 from .mechanism import Mechanism
-from .kinematics import Motion, kinematics, kinematics_at, static_motion
+from .kinematics import Cycle, Motion, kinematics, kinematics_at, static_motion
 from .assembly import FEModel
 from .effects import EFFECTS, ModalDamping, Rayleigh
 from .kinetostatics import kinetostatics

@@ -12,28 +12,27 @@ MOULD_EFFECTS = ("inertia", "coupling", "axial_stiffening", "geometric_nonlinear
                  "loads")
 
 
-def default_scene(group: int = 1, steps: int = 90, **mechanism_params) -> Scene:
+def default_scene(group: int = 1, steps: int | None = None, **mechanism_params) -> Scene:
     """Mould oscillator (paper section 5) of crank group ``group`` at its nominal 150 cycles/min.
 
     Parameters
     ----------
     group : int
         Crank group 1..4 (paper Table 2).
-    steps : int
-        Time nodes per cycle. 90 (4 degrees of crank) keeps the peak stresses and
-        deflections within about 0.5 % of the converged values and the
-        fundamental frequency within 1e-5 (benchmarks/accuracy_cost.py), at a
-        fraction of the cost of finer grids.
+    steps : int, optional
+        Fixed number of time elements (default: as many as the scene's
+        tolerance, 1e-3 on every link's peaks, needs).
     **mechanism_params
         Overrides of :data:`mechanisms.mould_oscillator.DEFAULTS`.
 
     Returns
     -------
     Scene
-        All effects of :data:`MOULD_EFFECTS`, 2 % modal damping, ``foh`` hold,
-        the paper's fixed-point iteration (Newton-like with the tangent terms) to ``eps = 1e-6``.
+        All effects of :data:`MOULD_EFFECTS`, 2 % modal damping, the default
+        time scheme, the paper's fixed-point iteration (Newton-like with the
+        tangent terms) to ``eps = 1e-6``.
     """
     from mechanisms import mould_oscillator
     mech = mould_oscillator.build(group=group, **mechanism_params)
-    return Scene(mech, steps=steps, effects=MOULD_EFFECTS, damping=ModalDamping(0.02), hold="foh",
+    return Scene(mech, steps=steps, effects=MOULD_EFFECTS, damping=ModalDamping(0.02),
                  eps=1e-6, nonlinear_method="fixed-point", name=f"mould oscillator, group {group}")

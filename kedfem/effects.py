@@ -710,17 +710,27 @@ class Assembler:
         d = self.damping
         if isinstance(d, Rayleigh):
             return d.alpha * M + d.beta * Ks
-        # modal damping at every time node
+        # modal damping at every time node: C = L V diag(2 zeta omega) V^T L^T with
+        # M = L L^T and L^-1 Ks L^-T = V diag(omega^2) V^T; the small eigenproblems
+        # run on the worker threads (LAPACK releases the GIL)
+        from .periodic import _run_parallel, _split, default_workers
         L = _cholesky(M, self.model)
-        Linv = np.linalg.inv(L)
-        A = Linv @ Ks @ np.swapaxes(Linv, -1, -2)
-        A = 0.5 * (A + np.swapaxes(A, -1, -2))
-        lam, V = np.linalg.eigh(A)
-        om = np.sqrt(np.clip(lam, 0.0, None))
-        scale = float(np.max(om)) if om.size else 0.0
-        om = np.where(om > 1e-8 * max(scale, 1e-300), om, 0.0)
-        LV = L @ V
-        return (LV * (2.0 * d.zeta * om)[:, None, :]) @ np.swapaxes(LV, -1, -2)
+        C = np.empty_like(M)
+
+        def work(i, lo, hi):
+            Li = L[lo:hi]
+            Linv = np.linalg.inv(Li)
+            A = Linv @ Ks[lo:hi] @ np.swapaxes(Linv, -1, -2)
+            A = 0.5 * (A + np.swapaxes(A, -1, -2))
+            lam, V = np.linalg.eigh(A)
+            om = np.sqrt(np.clip(lam, 0.0, None))
+            scale = np.max(om, axis=-1, keepdims=True) if om.size else np.zeros(om.shape[:-1] + (1,))
+            om = np.where(om > 1e-8 * np.maximum(scale, 1e-300), om, 0.0)
+            LV = Li @ V
+            C[lo:hi] = (LV * (2.0 * d.zeta * om)[:, None, :]) @ np.swapaxes(LV, -1, -2)
+
+        _run_parallel(work, _split(M.shape[0], default_workers(), min_part=4))
+        return C
 
     # ----------------------------------------------------------- state terms
     def _state_map(self, gname, mo):

@@ -54,3 +54,7 @@ class ConvergenceWarning(UserWarning):
 
 class OptionalDependencyError(KedError, ImportError):
     """An optional library needed for this output is not installed."""
+
+
+class AccuracyWarning(UserWarning):
+    """A result's estimated time-discretisation error exceeds the scene's tolerance."""

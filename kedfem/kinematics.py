@@ -25,7 +25,7 @@ import numpy as np
 from .errors import InputError, KinematicsError, MobilityError
 from .mechanism import GROUND, Mechanism
 
-__all__ = ["Motion", "kinematics", "kinematics_at", "static_motion"]
+__all__ = ["Motion", "Cycle", "kinematics", "kinematics_at", "static_motion"]
 
 log = logging.getLogger(__name__)
 
@@ -453,56 +453,126 @@ def _joint_states(model, theta, s, omega, sd, alpha, sdd):
     return r, v, a
 
 
-def _cycle_positions(model, t, period, y0, tol):
-    """Positions at all nodes ``t``: coarse continuation, Hermite guess, batched Newton.
+class Cycle:
+    """Rigid-body motion of a driven mechanism at any instants of its cycle.
 
-    The branch is followed by continuation on a coarse grid (about 10 degrees
-    of crank per step, with step halving); the fine nodes start from a cubic
-    Hermite interpolation of the coarse solution and its exact rates, and are
-    corrected by Newton's method for all nodes at once. Returns the positions
-    (n, k) and the state continued to ``t = period``.
+    The assembly branch is followed once, by continuation on a coarse grid
+    (36 steps, about 10 degrees of crank, with step halving); positions at
+    any instants then start from a cubic Hermite interpolation of the coarse
+    solution and its exact rates and are corrected by Newton's method for
+    all instants at once. Build one and call :meth:`at` as often as needed
+    (the time discretisations of a solve, its output grid).
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+        A driven single-degree-of-freedom linkage.
+
+    Raises
+    ------
+    MobilityError, KinematicsError
+        As :func:`kinematics`.
     """
-    cols = model.unknown_columns()
-    n = t.size
-    n_c = min(n, 36)
-    h = period / n_c
-    tc = np.arange(n_c + 1) * h
-    yc = np.vstack([y0[None], _march(model, tc[1:], y0, tol)])
-    if n_c == n or cols.size == 0:
+
+    #: steps of the coarse continuation grid
+    COARSE = 36
+
+    def __init__(self, mechanism: Mechanism):
+        model = _LoopModel(mechanism)
+        if not mechanism.drives:
+            raise InputError(f"{mechanism.name}: has no drive, so it has no cycle; "
+                             "use static_motion() for a structure")
+        self.mechanism = mechanism
+        self.model = model
+        self.period = period = mechanism.period
+        model.check_mobility()
+        self.tol = tol = 1e-14 * model.scale()
+        _check_reference(model, tol)
+        self.y0 = y0 = np.concatenate([model.theta0[model.free_members],
+                                       np.zeros(len(model.slider_names))])
+        cols = model.unknown_columns()
+        n_c = self.COARSE
+        self.h = h = period / n_c
+        self.tc = tc = np.arange(n_c + 1) * h
+        yc = np.vstack([y0[None], _march(model, tc[1:], y0, tol)])
+        self.yc = yc
+        if cols.size:
+            theta, sl = _split(model, yc, model.drive_angles(tc))
+            omega, sd, _al, _sdd = _rates(model, theta, sl, np.broadcast_to(
+                model.drive_speed, (tc.size, model.drive_idx.size)), cols)
+            self.ydc = np.concatenate([omega[:, model.free_members], sd], axis=1)
+        else:
+            self.ydc = np.zeros_like(yc)
+        # close the cycle: continuing to t = T must return to the reference configuration
+        yT = yc[-1]
+        nfree = model.free_members.size
+        wrap = yT.copy()
+        wrap[:nfree] = y0[:nfree] + np.round((yT[:nfree] - y0[:nfree]) / (2 * math.pi)) * 2 * math.pi
+        if np.max(np.abs(yT - wrap), initial=0.0) > 1e-8:
+            raise KinematicsError(f"{mechanism.name}: the motion does not return to the reference "
+                                  "configuration after one cycle (the linkage switched assembly branch)")
+
+    def positions(self, t: np.ndarray) -> np.ndarray:
+        """Unknown coordinates (free angles, slider travels) at instants ``t`` in ``[0, T]``."""
+        model, tol, y0 = self.model, self.tol, self.y0
+        cols = model.unknown_columns()
+        n = t.size
         if cols.size == 0:
-            return np.broadcast_to(y0, (n, y0.size)).copy(), yc[-1]
-        return yc[:-1], yc[-1]
-    theta, s = _split(model, yc, model.drive_angles(tc))
-    omega, sd, _alpha, _sdd = _rates(model, theta, s, np.broadcast_to(model.drive_speed, (tc.size, model.drive_idx.size)), cols)
-    ydc = np.concatenate([omega[:, model.free_members], sd], axis=1)
-    k = np.minimum((t / h).astype(int), n_c - 1)
-    u = ((t - tc[k]) / h)[:, None]
-    guess = ((2 * u**3 - 3 * u**2 + 1) * yc[k] + (u**3 - 2 * u**2 + u) * h * ydc[k]
-             + (-2 * u**3 + 3 * u**2) * yc[k + 1] + (u**3 - u**2) * h * ydc[k + 1])
-    thd = model.drive_angles(t)
-    y = guess.copy()
-    ok = False
-    for _ in range(8):
-        theta, s = _split(model, y, thd)
-        res = model.residual(theta, s)
-        if np.max(np.abs(res)) <= tol:
-            ok = True
-            break
-        J = model.jacobian(theta, s)[:, :, cols]
-        try:
-            y = y + np.linalg.solve(J, -res[..., None])[..., 0]
-        except np.linalg.LinAlgError:
-            break
-    if ok and np.max(np.abs(y - guess)) < 1e-3:
-        J = model.jacobian(*_split(model, y, thd))[:, :, cols]
-        cond = np.linalg.cond(J)
-        bad = np.flatnonzero(~np.isfinite(cond) | (cond > 1e10))
-        if bad.size:
-            _fail(model, y[bad[0]], thd[bad[0]], t[bad[0]], 0.0, toggle=True)
-        return y, yc[-1]
-    log.debug("kinematics: batched Newton did not settle; marching through all %d nodes", n)
-    ys = np.vstack([y0[None], _march(model, t[1:], y0, tol)])
-    return ys, yc[-1]
+            return np.broadcast_to(y0, (n, y0.size)).copy()
+        h, tc, yc, ydc = self.h, self.tc, self.yc, self.ydc
+        k = np.clip((t / h).astype(int), 0, self.COARSE - 1)
+        u = ((t - tc[k]) / h)[:, None]
+        guess = ((2 * u**3 - 3 * u**2 + 1) * yc[k] + (u**3 - 2 * u**2 + u) * h * ydc[k]
+                 + (-2 * u**3 + 3 * u**2) * yc[k + 1] + (u**3 - u**2) * h * ydc[k + 1])
+        thd = model.drive_angles(t)
+        y = guess.copy()
+        ok = False
+        for _ in range(8):
+            theta, s = _split(model, y, thd)
+            res = model.residual(theta, s)
+            if np.max(np.abs(res)) <= tol:
+                ok = True
+                break
+            J = model.jacobian(theta, s)[:, :, cols]
+            try:
+                y = y + np.linalg.solve(J, -res[..., None])[..., 0]
+            except np.linalg.LinAlgError:
+                break
+        if ok and np.max(np.abs(y - guess)) < 1e-3:
+            J = model.jacobian(*_split(model, y, thd))[:, :, cols]
+            cond = np.linalg.cond(J)
+            bad = np.flatnonzero(~np.isfinite(cond) | (cond > 1e10))
+            if bad.size:
+                _fail(model, y[bad[0]], thd[bad[0]], t[bad[0]], 0.0, toggle=True)
+            return y
+        log.debug("kinematics: batched Newton did not settle; marching through all %d instants", n)
+        order = np.argsort(t, kind="stable")
+        ys = np.empty((n, y0.size))
+        ys[order] = _march(model, t[order], y0, tol)
+        return ys
+
+    def at(self, times) -> Motion:
+        """Motion at instants ``times`` [s] in ``[0, T]`` (``T`` is the reference again).
+
+        Parameters
+        ----------
+        times : array_like of float, shape (n,)
+
+        Returns
+        -------
+        Motion
+        """
+        period = self.period
+        t = np.asarray(times, dtype=float)
+        if t.ndim != 1 or t.size == 0 or not np.all(np.isfinite(t)) \
+                or t.min() < 0.0 or t.max() > period * (1 + 1e-12):
+            raise InputError(f"kinematics: times must be a non-empty 1-D array of instants in "
+                             f"[0, {period:.6g}] s (one cycle), got {np.asarray(times)!r:.80}")
+        end = t >= period
+        y = self.positions(np.where(end, 0.0, t))
+        y[end] = self.yc[-1]  # the end of the cycle (angles continued, not wrapped)
+        crank = self.model.drive_angles(t)[:, 0]
+        return _motion(self.model, t, crank, y, period)
 
 
 def _march(model, targets_t, y0, tol, max_depth=8):
@@ -651,7 +721,7 @@ def _with_passive(model, r, v, a, theta, omega, alpha):
             np.concatenate([model.theta0, ref]))
 
 
-def kinematics(mechanism: Mechanism, steps: int = 360) -> Motion:
+def kinematics(mechanism: Mechanism, steps: int = 360, *, times=None) -> Motion:
     """Rigid-body motion over one cycle of the first drive.
 
     Parameters
@@ -661,6 +731,11 @@ def kinematics(mechanism: Mechanism, steps: int = 360) -> Motion:
         synchronised drives matching its mobility).
     steps : int
         Number of time nodes ``n`` (>= 3); ``t_k = k T / n``, ``k = 0..n-1``.
+    times : array_like of float, shape (n,), optional
+        Instead of ``steps``: any instants of the cycle [s], in ``[0, T]``
+        (the collocation instants of a time discretisation, a fine output
+        grid); ``T`` itself is the reference configuration again. For many
+        calls on one mechanism build a :class:`Cycle` once.
 
     Returns
     -------
@@ -674,29 +749,14 @@ def kinematics(mechanism: Mechanism, steps: int = 360) -> Motion:
     KinematicsError
         The linkage cannot complete the cycle (names the loop and crank angle).
     """
-    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 3:
-        raise InputError(f"kinematics: steps must be an integer >= 3, got {steps!r}")
-    model = _LoopModel(mechanism)
-    if not mechanism.drives:
-        raise InputError(f"{mechanism.name}: has no drive, so it has no cycle; "
-                         "use static_motion() for a structure")
-    period = mechanism.period
-    model.check_mobility()
-    tol = 1e-14 * model.scale()
-    _check_reference(model, tol)
-    t = np.arange(steps) * (period / steps)
-    y0 = np.concatenate([model.theta0[model.free_members], np.zeros(len(model.slider_names))])
-    # close the cycle: continuing to t = T must return to the reference configuration
-    y, yT = _cycle_positions(model, t, period, y0, tol)
-    nfree = model.free_members.size
-    wrap = yT.copy()
-    wrap[:nfree] = y0[:nfree] + np.round((yT[:nfree] - y0[:nfree]) / (2 * math.pi)) * 2 * math.pi
-    if np.max(np.abs(yT - wrap), initial=0.0) > 1e-8:
-        raise KinematicsError(f"{mechanism.name}: the motion does not return to the reference "
-                              "configuration after one cycle (the linkage switched assembly branch)")
-    crank = model.drive_angles(t)[:, 0]
-    mo = _motion(model, t, crank, y, period)
-    log.debug("kinematics of %s: %d nodes, residual %.3g m", mechanism.name, steps, mo.residual)
+    if times is None:
+        if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 3:
+            raise InputError(f"kinematics: steps must be an integer >= 3, got {steps!r}")
+    cyc = Cycle(mechanism)
+    if times is None:
+        times = np.arange(steps) * (cyc.period / steps)
+    mo = cyc.at(times)
+    log.debug("kinematics of %s: %d instants, residual %.3g m", mechanism.name, mo.n, mo.residual)
     return mo
 
 

@@ -40,7 +40,7 @@ import numpy as np
 from . import periodic
 from .errors import ConvergenceWarning, InputError
 
-__all__ = ["solve", "NonlinearResult", "NONLINEAR_METHODS"]
+__all__ = ["solve", "fixed_point", "NonlinearResult", "NONLINEAR_METHODS"]
 
 log = logging.getLogger(__name__)
 
@@ -166,7 +166,6 @@ def solve(M, C, K, Q, period: float, state_terms: StateTerms, hold: str = "foh",
         raise InputError(f"Q must have shape (n, N), got {Q.shape}")
     n, N = Q.shape
     period = float(period)
-    vscale = period / (2 * math.pi)  # velocity -> displacement units in the stacked vector
 
     def G(U, V, it):
         dM, dC, dK, dQ = state_terms(U, V)
@@ -184,13 +183,53 @@ def solve(M, C, K, Q, period: float, state_terms: StateTerms, hold: str = "foh",
         Cz = _add(np.zeros((n, N, N)), dC, "dC", (n, N, N), it) if dC is not None else None
         return periodic.solve(Mi, C, K, Q, period, hold=hold, Kz=Kz, Qz=Qz, Cz=Cz, **solver_kwargs)
 
+    sol, history, converged, message = fixed_point(
+        lambda U, V, it: (lambda so: (so, so.U, so.V))(G(U, V, it)), n, N, period, eps=eps,
+        max_iter=max_iter, method=method, relaxation=relaxation, depth=depth)
+    return NonlinearResult(solution=sol, iterations=len(history),
+                           history=np.asarray(history), converged=converged,
+                           message=message, method=method)
+
+
+def fixed_point(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter: int = 50,
+                method: str = "fixed-point", relaxation: float = 0.5, depth: int = 5,
+                x0: tuple[np.ndarray, np.ndarray] | None = None):
+    """Fixed point of a periodic solve map ``(U, V) -> G(U, V)`` (see the module docstring).
+
+    Parameters
+    ----------
+    G : callable
+        ``G(U, V, it) -> (solution, U_new, V_new)``: one linear periodic solve
+        with the state-dependent terms evaluated at the trial response
+        ``U, V`` (n, N) at the instants where the scheme needs them; returns
+        its solution object and the new response at the same instants.
+    n, N : int
+        Instants and DOFs of the iterate.
+    period : float
+        [s] (scales velocities into the stacked vector of Anderson's method).
+    eps, max_iter, method, relaxation, depth
+        As in :func:`solve`.
+    x0 : (U, V), optional
+        First trial response (default zero: the first solve is the linear one).
+
+    Returns
+    -------
+    solution : object
+        Of the last solve.
+    history : list of float
+        Eq. 21 changes.
+    converged : bool
+    message : str
+    """
+    vscale = period / (2 * math.pi)  # velocity -> displacement units in the stacked vector
+
     def pack(U, V):
         return np.concatenate([U.ravel(), (V * vscale).ravel()])
 
     def unpack(x):
         return x[:n * N].reshape(n, N), x[n * N:].reshape(n, N) / vscale
 
-    x = np.zeros(2 * n * N)
+    x = np.zeros(2 * n * N) if x0 is None else pack(np.asarray(x0[0], float), np.asarray(x0[1], float))
     history: list[float] = []
     dG: list[np.ndarray] = []
     dF: list[np.ndarray] = []
@@ -201,14 +240,14 @@ def solve(M, C, K, Q, period: float, state_terms: StateTerms, hold: str = "foh",
     message = ""
     for it in range(1, max_iter + 1):
         U, V = unpack(x)
-        sol = G(U, V, it)
-        g = pack(sol.U, sol.V)
+        sol, Un, Vn = G(U, V, it)
+        g = pack(Un, Vn)
         f = g - x
-        dU = float(np.linalg.norm(sol.U - U))
-        nU = float(np.linalg.norm(sol.U))
+        dU = float(np.linalg.norm(Un - U))
+        nU = float(np.linalg.norm(Un))
         change = 0.0 if dU == 0.0 else (dU / nU if nU > 0 else math.inf)
         history.append(change)
-        log.debug("nonlinear.solve(%s): iteration %d change %.3e", method, it, change)
+        log.debug("nonlinear (%s): iteration %d change %.3e", method, it, change)
         if change <= eps:
             converged = True
             message = f"converged after {it} linear solves (change {change:.2e} <= eps {eps:.1e})"
@@ -245,8 +284,6 @@ def solve(M, C, K, Q, period: float, state_terms: StateTerms, hold: str = "foh",
         message = (f"not converged after {max_iter} linear solves (last change "
                    f"{history[-1]:.2e} > eps {eps:.1e})")
     if not converged:
-        warnings.warn(f"nonlinear.solve ({method}): {message}", ConvergenceWarning, stacklevel=2)
-    log.info("nonlinear.solve(%s): %s", method, message)
-    return NonlinearResult(solution=sol, iterations=len(history),
-                           history=np.asarray(history), converged=converged,
-                           message=message, method=method)
+        warnings.warn(f"non-linear iteration ({method}): {message}", ConvergenceWarning, stacklevel=3)
+    log.info("non-linear iteration (%s): %s", method, message)
+    return sol, history, converged, message

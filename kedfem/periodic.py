@@ -63,7 +63,7 @@ import scipy.sparse.linalg as spla
 from .errors import InputError, InstabilityWarning, ResonanceError, SingularMassError
 from .expm import balance, exponential_integrals, second_order_transition
 
-__all__ = ["solve", "PeriodicSolution", "HOLDS", "METHODS", "auto_delta", "MIN_NODES"]
+__all__ = ["solve", "solve_cyclic", "CyclicSolution", "PeriodicSolution", "HOLDS", "METHODS", "auto_delta", "MIN_NODES"]
 
 log = logging.getLogger(__name__)
 
@@ -763,11 +763,74 @@ def _solve(M, C, K, Q, period: float, hold: str = "zoh", *, n: int | None = None
     m = 2 * N
     ma = m + (1 if hold == "zoh" else 2)
     invariant = Ms.const and Cs.const and Ks.const and Kzs is None and Czs is None
+    if workers is None:
+        workers = default_workers()
+    elif not (isinstance(workers, (int, np.integer)) and workers >= 1):
+        raise InputError(f"workers must be a positive integer or None, got {workers!r}")
     # elements per chunk: the batched exponential's work memory fits half the budget
-    if invariant:  # only O(m) per element: b_k and the scan partial sums
-        chunk = max(1, min(n, int(memory_budget // (8 * m * 8))))
-    else:
-        chunk = max(1, min(n, int(memory_budget // (2 * _WORK_COPIES * ma * ma * 8))))
+    # (only O(m) per element when invariant: b_k and the scan partial sums)
+    per_element = 8 * m * 8 if invariant else 2 * _WORK_COPIES * ma * ma * 8
+    elems = _Elements(Ms, Cs, Ks, Qs, n, N, period, hold, delta, 1, approximant, int(workers),
+                      Kzs, Qzs, Czs)
+    cyc = solve_cyclic(elems, per_element, method=method, memory_budget=memory_budget,
+                       max_condition=max_condition, timings=timings, t_start=t_start)
+    return PeriodicSolution(
+        t=np.arange(n) * (period / n), U=cyc.Z[:, :N].copy(), V=cyc.Z[:, N:].copy(),
+        floquet_multipliers=cyc.multipliers, stable=cyc.stable, residual=cyc.residual,
+        monodromy=cyc.monodromy, method=cyc.method, hold=hold, period=period,
+        delta=float(elems.delta_used), approximant=approximant, degree=int(elems.degree),
+        max_squarings=int(elems.max_squarings), n_exponentials=int(elems.n_exponentials),
+        condition=cyc.condition, passes=cyc.passes, timings=MappingProxyType(timings))
+
+
+@dataclass(frozen=True)
+class CyclicSolution:
+    """Outcome of :func:`solve_cyclic` (see :class:`PeriodicSolution` for the fields)."""
+
+    Z: np.ndarray
+    multipliers: np.ndarray
+    stable: bool
+    residual: float
+    monodromy: np.ndarray
+    method: str
+    condition: float
+    passes: int
+
+
+def solve_cyclic(elems, per_element: float, *, method: str = "auto", memory_budget: float = 256e6,
+                 max_condition: float = MAX_CONDITION, timings: dict | None = None,
+                 t_start: float | None = None) -> CyclicSolution:
+    """Periodic states of ``z_{k+1} = A_k z_k + b_k``, ``z_n = z_0``, and its Floquet analysis.
+
+    The block-cyclic system of any one-step time discretisation (the
+    exponential holds of this module, the collocation schemes of
+    :mod:`kedfem.collocation`): condensation (paper Eq. 13-16) or, when a
+    multiplier lies outside the unit circle or ``I - Phi`` is non-normal and
+    ill-conditioned, a sparse LU of the whole cyclic system.
+
+    Parameters
+    ----------
+    elems : transition source
+        Object with attributes ``n`` (elements), ``m`` (state size),
+        ``invariant`` (one ``A`` for all elements), ``chunk`` (set here),
+        ``workers``, and methods ``bounds()`` (chunks ``(a, b)``) and
+        ``compute(a, b) -> (A (b-a, m, m) or (m, m), b (b-a, m))``.
+    per_element : float
+        Work memory of ``compute`` per element [bytes] (sets the chunk size).
+    method, memory_budget, max_condition
+        As in :func:`solve`.
+    timings : dict, optional
+        Filled with the wall time of the phases [s].
+
+    Returns
+    -------
+    CyclicSolution
+        States ``Z`` (n, m) at the element starts and the Floquet analysis.
+    """
+    timings = {} if timings is None else timings
+    t_start = time.perf_counter() if t_start is None else t_start
+    n, m, invariant = elems.n, elems.m, elems.invariant
+    chunk = max(1, min(n, int(memory_budget // per_element)))
     keep = invariant or n * m * m * 8 <= memory_budget / 2
     # segments of the cyclic system solved by sparse LU in the unstable case: one
     # element per segment (the whole cyclic system) unless its LU would not fit
@@ -778,14 +841,8 @@ def _solve(M, C, K, Q, period: float, hold: str = "zoh", *, n: int | None = None
             chunk = max(seg, (chunk // seg) * seg)
         else:
             seg = -(-seg // chunk) * chunk
-    if workers is None:
-        workers = default_workers()
-    elif not (isinstance(workers, (int, np.integer)) and workers >= 1):
-        raise InputError(f"workers must be a positive integer or None, got {workers!r}")
-    elems = _Elements(Ms, Cs, Ks, Qs, n, N, period, hold, delta, chunk, approximant, int(workers),
-                      Kzs, Qzs, Czs)
-    log.debug("periodic.solve: n=%d N=%d hold=%s delta=%s chunk=%d keep=%s segment=%d",
-              n, N, hold, delta, chunk, keep, seg)
+    elems.chunk = chunk
+    log.debug("solve_cyclic: n=%d m=%d chunk=%d keep=%s segment=%d", n, m, chunk, keep, seg)
 
     # ---- pass 1: exponentials, monodromy, particular part -------------------
     t0 = time.perf_counter()
@@ -930,17 +987,9 @@ def _solve(M, C, K, Q, period: float, hold: str = "zoh", *, n: int | None = None
     residual = rnorm / denom if denom > 0 else 0.0
     timings["solve"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
-    log.info("periodic.solve: n=%d N=%d hold=%s method=%s rho=%.6g cond=%.3g residual=%.2e "
-             "exps=%d (%.3f s)", n, N, hold, method, rho, cond, residual, elems.n_exponentials,
-             timings["total"])
-    return PeriodicSolution(
-        t=np.arange(n) * (period / n), U=Z[:, :N].copy(), V=Z[:, N:].copy(),
-        floquet_multipliers=mult, stable=bool(stable), residual=float(residual),
-        monodromy=Phi, method=method, hold=hold, period=period, delta=float(elems.delta_used),
-        approximant=approximant, degree=int(elems.degree),
-        max_squarings=int(elems.max_squarings),
-        n_exponentials=int(elems.n_exponentials), condition=float(cond), passes=passes,
-        timings=MappingProxyType(timings))
+    log.info("periodic: n=%d m=%d method=%s rho=%.6g cond=%.3g residual=%.2e (%.3f s)",
+             n, m, method, rho, cond, residual, timings["total"])
+    return CyclicSolution(Z, mult, bool(stable), float(residual), Phi, method, float(cond), passes)
 
 
 solve.__doc__ = (_solve.__doc__ or "") + """

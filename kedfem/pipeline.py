@@ -1,27 +1,56 @@
-"""``kf.solve(scene)``: kinematics -> assembly of the chosen effects -> periodic solve (-> iteration)."""
+"""``kf.solve(scene)``: kinematics -> assembly of the chosen effects -> periodic solve
+(-> iteration) on a sequence of time discretisations until the error estimate
+meets the scene's tolerance.
+
+One *level* is one periodic solve on ``n`` time elements of the scene's
+scheme (:mod:`kedfem.schemes`): the motion at the scheme's instants, the
+effects assembled there, the linear periodic solve, or the non-linear
+iteration when a chosen effect depends on the elastic state. A
+tolerance-driven solve (``Scene.steps`` not given) starts coarse and refines
+until the estimate of every flexible link's peak deflection and stress meets
+``Scene.rtol`` (:mod:`kedfem.accuracy`); with ``steps`` given, two coarser
+levels (``steps / 4`` and ``steps / 2``) provide the estimate. The result is
+read on output instants (at least 360 per cycle, the element ends among
+them) and anywhere else through its dense output (``res.resample``).
+"""
 
 from __future__ import annotations
 
+import dataclasses
 import logging
+import math
 import time
 import warnings
+from dataclasses import dataclass
 
 import numpy as np
 
-from . import nonlinear, periodic
+from . import accuracy, schemes
 from .assembly import FEModel
 from .effects import Assembler
-from .errors import ConvergenceWarning
-from .kinematics import kinematics
-from .results import PeriodicResult, Timings
-from .scene import Scene
+from .errors import AccuracyWarning, InputError
+from .kinematics import Cycle, kinematics
+from .nonlinear import fixed_point
+from .periodic import _blas_one_thread
+from .results import PeriodicResult, Sampler, Timings
+from .scene import MAX_STEPS, Scene
 
-__all__ = ["solve", "assemble_scene"]
+__all__ = ["solve", "assemble_scene", "START_ELEMENTS", "OUTPUT_STEPS"]
 
 log = logging.getLogger(__name__)
 
 #: above this many bytes for the (n, N, N) matrices of a linear scene, assemble chunk by chunk
 STREAM_BYTES = 400e6
+#: least number of output instants per cycle (1 degree of crank)
+OUTPUT_STEPS = 360
+#: time elements of the first level of a tolerance-driven solve, per scheme (doubled
+#: until the elements resolve the relevant modes, see ``_Run.resolution``)
+START_ELEMENTS = {"radau3": 12, "radau2": 16, "gauss3": 12, "gauss2": 16, "magnus2": 45,
+                  "foh": 45, "zoh": 90}
+#: largest ``omega h`` at which a level counts as resolving a mode (one element per period)
+RESOLVE_OMEGA_H = 2.0 * math.pi
+#: instants of the cycle where the modal frequency bands are sampled
+BAND_INSTANTS = 12
 
 
 class _Chunks:
@@ -53,19 +82,25 @@ class _Chunks:
 
 
 def _constant_or_sampled(X: np.ndarray) -> np.ndarray:
-    """``X[0]`` when every time node holds exactly the same matrix, else ``X``.
+    """``X[0]`` when every instant holds exactly the same matrix, else ``X``.
 
     A time-invariant scene (every body translating, or none moving) then takes
-    the periodic solver's constant-matrix path: one exponential instead of one
-    per element (about 10x faster on the exciter).
+    the solvers' constant-matrix path: one exponential (or one stage
+    factorisation) instead of one per element.
     """
     if X.ndim == 3 and X.shape[0] > 1 and np.array_equal(X, np.broadcast_to(X[0], X.shape)):
         return X[0]
     return X
 
 
-def assemble_scene(scene: Scene):
-    """Kinematics, FE model and assembler of a scene (no solve).
+def assemble_scene(scene: Scene, steps: int | None = None):
+    """Kinematics, FE model and assembler of a scene at equally spaced nodes (no solve).
+
+    Parameters
+    ----------
+    scene : Scene
+    steps : int, optional
+        Nodes ``k T / steps`` (default ``scene.steps``, or 360).
 
     Returns
     -------
@@ -73,19 +108,38 @@ def assemble_scene(scene: Scene):
     model : FEModel
     assembler : Assembler
     """
-    motion = kinematics(scene.mech, steps=scene.steps)
+    n = steps if steps is not None else (scene.steps or OUTPUT_STEPS)
+    motion = kinematics(scene.mech, steps=n)
     model = FEModel(scene.mech, reduction=scene.reduction)
     asm = Assembler(model, motion, scene.effects, damping=scene.damping)
     return motion, model, asm
 
 
-def solve(scene: Scene) -> PeriodicResult:
-    """Periodic steady-state elastic response of a scene.
+@dataclass
+class _Level:
+    """One periodic solve of the refinement sequence."""
 
-    Assembles exactly the scene's effects at every time node, solves the
-    periodic state-space problem (:func:`kedfem.periodic.solve`), and iterates
-    (:func:`kedfem.nonlinear.solve`, the paper's Eq. 21 criterion) only when a
-    chosen effect depends on the elastic state.
+    n: int
+    discrete: schemes.Discrete
+    converged: bool
+    iterations: int
+    history: tuple
+    kinematics: float
+    assembly: float
+    solve: float
+    caught: list
+
+
+def solve(scene: Scene) -> PeriodicResult:
+    """Periodic steady-state elastic response of a scene, with its error estimate.
+
+    Assembles exactly the scene's effects at the instants the time scheme
+    needs, solves the periodic problem, iterates (the paper's Eq. 21
+    criterion) only when a chosen effect depends on the elastic state, and
+    refines the time elements until the estimated error of every flexible
+    link's peak deflection and stress meets ``scene.rtol`` (or, with
+    ``scene.steps`` given, solves on that many and estimates the error from
+    two coarser solves).
 
     Parameters
     ----------
@@ -94,6 +148,7 @@ def solve(scene: Scene) -> PeriodicResult:
     Returns
     -------
     PeriodicResult
+        With ``res.error`` (:class:`~kedfem.accuracy.ErrorEstimate`).
 
     Raises
     ------
@@ -103,58 +158,264 @@ def solve(scene: Scene) -> PeriodicResult:
         ``I - Phi`` singular (undamped resonance or a free rigid-body mode).
     SingularMassError
         Massless DOFs.
+
+    Warns
+    -----
+    AccuracyWarning
+        The estimate exceeds ``scene.rtol`` (fixed ``steps``, or the largest
+        number of elements reached).
+    ConvergenceWarning
+        The non-linear iteration of the result did not meet ``scene.eps``.
+    InstabilityWarning
+        A Floquet multiplier lies outside the unit circle.
     """
     if not isinstance(scene, Scene):
-        from .errors import InputError
         raise InputError(f"solve: expected a kf.Scene, got {type(scene).__name__}")
     # one BLAS thread: the batched small-matrix work (eigh of the modal
     # damping, products, the periodic solve) ran 10-40x slower on OpenBLAS's
     # threads whenever the other core was busy (benchmarks/peers.py)
-    with periodic._blas_one_thread():
-        return _solve(scene)
+    with _blas_one_thread():
+        return _Run(scene).run()
 
 
-def _solve(scene: Scene) -> PeriodicResult:
-    t0 = time.perf_counter()
-    motion = kinematics(scene.mech, steps=scene.steps)
-    t1 = time.perf_counter()
-    model = FEModel(scene.mech, reduction=scene.reduction)
-    asm = Assembler(model, motion, scene.effects, damping=scene.damping)
-    n, N = motion.n, model.n_dof
-    kw = {"delta": scene.delta} if scene.delta is not None else {}
-    state = asm.state_dependent
-    stream = (not state) and 3 * n * N * N * 8 > STREAM_BYTES
-    if stream:
-        ch = _Chunks(asm)
-        t2 = time.perf_counter()
-        sol = periodic.solve(ch.M, ch.C, ch.K, ch.Q, motion.period, hold=scene.hold, n=n, **kw)
-        t3 = time.perf_counter()
-        converged, iters, hist = True, 1, ()
-    else:
-        terms = asm.system()
-        t2 = time.perf_counter()
-        if state:
-            def state_terms(U, V):
-                dC, dK, dQ = asm.state_terms(U, V)
-                return None, dC, dK, dQ
+class _Run:
+    """The levels of one solve and their observables on common output instants."""
 
-            with warnings.catch_warnings(record=True) as caught:
-                warnings.simplefilter("always", ConvergenceWarning)
-                nl = nonlinear.solve(terms.M, terms.C, terms.K, terms.Q, motion.period, state_terms,
-                                     hold=scene.hold, eps=scene.eps, max_iter=scene.max_iter,
-                                     method=scene.nonlinear_method, linearization="tangent", **kw)
-            for w in caught:
-                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-            sol = nl.solution
-            converged, iters, hist = bool(nl.converged), int(nl.iterations), tuple(float(h) for h in nl.history)
+    def __init__(self, scene: Scene):
+        self.t0 = time.perf_counter()
+        self.scene = scene
+        self.cycle = Cycle(scene.mech)
+        self.model = FEModel(scene.mech, reduction=scene.reduction)
+        self.scheme = schemes.get(scene.scheme)
+        self.levels: list[_Level] = []
+        self._grids: dict[int, tuple] = {}
+        self._obs: dict[tuple[int, int], accuracy.Observables] = {}
+        self.t_setup = time.perf_counter() - self.t0
+
+    # ---------------------------------------------------------------- levels
+    def level(self, n: int) -> _Level:
+        """Solve on ``n`` time elements (warm start from the previous level)."""
+        sc, scheme = self.scene, self.scheme
+        period = sc.period
+        ta = time.perf_counter()
+        ti = scheme.instants(n, period)
+        motion = self.cycle.at(ti)
+        tb = time.perf_counter()
+        asm = Assembler(self.model, motion, sc.effects, damping=sc.damping)
+        N = self.model.n_dof
+        opts = {"delta": sc.delta} if sc.delta is not None else {}
+        state = asm.state_dependent
+        caught: list = []
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            if not state and 3 * ti.size * N * N * 8 > STREAM_BYTES:
+                ch = _Chunks(asm)
+                tc = time.perf_counter()
+                d = scheme.solve(ch.M, ch.C, ch.K, ch.Q, period, n, **opts)
+                converged, iters, hist = True, 1, ()
+            else:
+                terms = asm.system()
+                tc = time.perf_counter()
+                if state:
+                    def G(U, V, it):
+                        dC, dK, dQ = asm.state_terms(U, V)
+                        dd = scheme.solve(terms.M, terms.C, terms.K, terms.Q, period, n,
+                                          dC=dC, dK=dK, dQ=dQ, **opts)
+                        return (dd,) + dd.instant_states()
+
+                    x0 = self.levels[-1].discrete.at(ti) if self.levels else None
+                    d, hist, converged, _msg = fixed_point(
+                        G, ti.size, N, period, eps=sc.eps, max_iter=sc.max_iter,
+                        method=sc.nonlinear_method, x0=x0)
+                    iters, hist = len(hist), tuple(float(h) for h in hist)
+                else:
+                    M, C, K = (_constant_or_sampled(X) for X in (terms.M, terms.C, terms.K))
+                    d = scheme.solve(M, C, K, terms.Q, period, n, **opts)
+                    converged, iters, hist = True, 1, ()
+        td = time.perf_counter()
+        lv = _Level(n, d, bool(converged), int(iters), hist, tb - ta, tc - tb, td - tc, list(caught))
+        log.info("%s: level n=%d (%s) %d iteration(s) rho=%.4g %.3f s", sc.mech.name, n, scheme.name,
+                 iters, d.spectral_radius, td - ta)
+        self.levels.append(lv)
+        return lv
+
+    def resolution(self) -> tuple[int, float]:
+        """Fewest time elements that resolve the modes the drive can excite.
+
+        An L-stable scheme damps the resonant response and the free vibration
+        of modes its elements do not resolve, alike at every coarse level, so
+        two such levels can agree while both are wrong: the coarser levels of
+        an error estimate must resolve (``omega h <= RESOLVE_OMEGA_H``) every
+        mode in the band of the excitation. That band reaches the highest of
+        (a) twice the top of the fundamental's frequency band (the time
+        variation of the system mixes its response into neighbouring modes),
+        (b) the highest harmonic of the rigid-body motion above 1e-6 of its
+        largest (the inertia loads), (c) ``1 / (pi tau)`` of the fastest
+        friction reversal (a regularised step of time scale ``tau`` excites
+        the modes below it). Mode bands come from the co-moving-frame system
+        (the scene's effects, no state terms) at :data:`BAND_INSTANTS`
+        instants of the cycle.
+
+        Returns
+        -------
+        n : int
+            Fewest time elements.
+        f : float
+            Highest frequency to resolve [Hz].
+        """
+        from .modal import eig_frequencies
+        sc = self.scene
+        T = sc.period
+        t = np.arange(BAND_INSTANTS) * (T / BAND_INSTANTS)
+        asm = Assembler(self.model, self.cycle.at(t), sc.effects, damping=sc.damping, frame=True)
+        S = asm.system()
+        f = np.sort(np.abs(eig_frequencies(S.M, S.K)), axis=1)  # (instants, modes), Hz
+        if not np.any(f[:, -1] > 0):
+            return 1, 0.0
+        lo, hi = f.min(axis=0), f.max(axis=0)
+        first = int(np.argmax(hi > 0))
+        band = max(2.0 * float(hi[first]), self._motion_band(), self._friction_band())
+        f_res = float(hi[lo <= band].max())
+        n = int(math.ceil(2.0 * math.pi * f_res * T / RESOLVE_OMEGA_H))
+        log.info("%s: excitation band %.4g Hz, modes to resolve up to %.4g Hz: >= %d elements",
+                 sc.mech.name, band, f_res, n)
+        return n, f_res
+
+    def _motion_band(self, samples: int = 512, level: float = 1e-6) -> float:
+        """Highest frequency [Hz] of the rigid-body motion's harmonics above ``level``."""
+        T = self.scene.period
+        mo = self.cycle.at(np.arange(samples) * (T / samples))
+        X = np.concatenate([x.reshape(samples, -1) for x in (mo.a, mo.alpha, mo.omega ** 2, mo.sdd)
+                            if x.size], axis=1)
+        F = np.abs(np.fft.rfft(X, axis=0))[1:]
+        amp = F.max(axis=0)
+        keep = amp > 1e-9 * amp.max() if amp.size and amp.max() > 0 else np.zeros(amp.shape, bool)
+        if not keep.any():
+            return 0.0
+        env = (F[:, keep] / amp[keep]).max(axis=1)
+        return float((np.flatnonzero(env > level).max() + 1) / T)
+
+    def _friction_band(self, samples: int = 4096) -> float:
+        """``1 / (pi tau)`` [Hz] of the fastest reversal of the mechanism's friction forces.
+
+        A force ``-F tanh((v . axis - v_ref) / s)`` reverses where the
+        rigid-body velocity crosses ``v_ref``, over ``tau = s / |a . axis|``.
+        """
+        mech = self.scene.mech
+        if not mech.frictions or "loads" not in self.scene.effects:
+            return 0.0
+        T = self.scene.period
+        mo = self.cycle.at(np.arange(samples) * (T / samples))
+        out = 0.0
+        for fr in mech.frictions.values():
+            ax = np.asarray(fr.axis, dtype=float)
+            ax = ax / np.linalg.norm(ax)
+            j = mo.joint_names.index(fr.joint)
+            v = mo.v[:, j] @ ax - fr.reference_speed
+            a = np.abs(mo.a[:, j] @ ax)
+            cross = np.flatnonzero(np.sign(v) != np.sign(np.roll(v, -1)))
+            if cross.size:
+                out = max(out, float(a[cross].max()) / (math.pi * fr.smoothing))
+        return out
+
+    # ----------------------------------------------------------- output grid
+    @staticmethod
+    def output_steps(n: int) -> int:
+        """Output instants for ``n`` elements: a multiple of ``n``, at least :data:`OUTPUT_STEPS`."""
+        return n * max(1, -(-OUTPUT_STEPS // n))
+
+    def _grid(self, n_out: int):
+        g = self._grids.get(n_out)
+        if g is None:
+            t = np.arange(n_out) * (self.scene.period / n_out)
+            g = self._grids[n_out] = (t, self.cycle.at(t), {})
+        return g
+
+    def result(self, lv: _Level, n_out: int, error=None, shared_cache: bool = True) -> PeriodicResult:
+        """The level read on ``n_out`` equally spaced output instants."""
+        t, motion, cache = self._grid(n_out)
+        d = lv.discrete
+        U, V = d.at(t)
+        res = PeriodicResult(
+            self.scene, self.model, motion, motion.t, motion.crank_angle, U, V,
+            tuple(self.model.dof_labels), d.floquet_multipliers, bool(d.stable), lv.converged,
+            lv.iterations, lv.history, float(d.residual), Timings(0.0, 0.0, 0.0, 0.0), d.method,
+            elements=lv.n, scheme=self.scheme.name, error=error, sampler=Sampler(self.cycle, d))
+        if shared_cache:
+            # the constraint maps depend on the motion only: built once per output grid
+            if "beam_map" in cache:
+                res._cache["beam_map"] = cache["beam_map"]
+            else:
+                cache["beam_map"] = res._beam_map()
+        return res
+
+    def observe(self, i: int, n_out: int) -> accuracy.Observables:
+        key = (i, n_out)
+        if key not in self._obs:
+            self._obs[key] = self.result(self.levels[i], n_out).observables()
+        return self._obs[key]
+
+    def estimate(self, n_out: int, need: int = 0) -> accuracy.ErrorEstimate | None:
+        """Estimate of the finest level from the last two or three (``need``: resolution floor)."""
+        k = len(self.levels)
+        if k < 2:
+            return None
+        idx = list(range(max(0, k - 3), k))
+        obs = [self.observe(i, n_out) for i in idx]
+        est = accuracy.estimate([self.levels[i].n for i in idx], obs,
+                                assumed=accuracy.ASSUMED_RATE.get(self.scheme.name, 1.0),
+                                rtol=self.scene.rtol)
+        resolved = (not self.scheme.l_stable) or self.levels[idx[-2]].n >= need
+        return dataclasses.replace(est, resolved=bool(resolved))
+
+    # ------------------------------------------------------------------- run
+    def run(self) -> PeriodicResult:
+        sc, scheme = self.scene, self.scheme
+        est = None
+        need, f_res = self.resolution() if (sc.estimate or sc.steps is None) else (0, 0.0)
+        if sc.steps is not None:
+            n = scheme.check_elements(sc.steps)
+            plan = [m for m in (n // 4, n // 2) if m >= scheme.min_elements] if sc.estimate else []
+            for m in plan + [n]:
+                self.level(m)
+            n_out = self.output_steps(n)
+            if sc.estimate:
+                est = self.estimate(n_out, need)
         else:
-            M, C, K = (_constant_or_sampled(X) for X in (terms.M, terms.C, terms.K))
-            sol = periodic.solve(M, C, K, terms.Q, motion.period, hold=scene.hold, **kw)
-            converged, iters, hist = True, 1, ()
-        t3 = time.perf_counter()
-    timings = Timings(kinematics=t1 - t0, assembly=t2 - t1, solve=t3 - t2, total=t3 - t0)
-    log.info("%s: n=%d N=%d iterations=%d converged=%s stable=%s %.3f s", scene.mech.name, n, N,
-             iters, converged, sol.stable, timings.total)
-    return PeriodicResult(scene, model, motion, motion.t, motion.crank_angle, sol.U, sol.V,
-                          tuple(model.dof_labels), sol.floquet_multipliers, bool(sol.stable), converged,
-                          iters, hist, float(sol.residual), timings, getattr(sol, "method", "condensation"))
+            # double from a start whose second level resolves the relevant modes; the
+            # estimate needs three levels (an observed rate) before it is believed
+            n = max(START_ELEMENTS.get(scheme.name, 24), scheme.min_elements)
+            while 2 * n < need and 4 * n <= MAX_STEPS:
+                n *= 2
+            log.info("%s: modes up to %.4g Hz need >= %d time elements; levels from %d",
+                     sc.mech.name, f_res, need, n)
+            while True:
+                self.level(n)
+                if len(self.levels) >= 3:
+                    est = self.estimate(self.output_steps(n), need)
+                    if est.met:
+                        break
+                if 2 * n > MAX_STEPS:
+                    break
+                n *= 2
+            n_out = self.output_steps(self.levels[-1].n)
+            if est is None and len(self.levels) >= 2:
+                est = self.estimate(n_out, need)
+        final = self.levels[-1]
+        for w in final.caught:  # warnings of the result's own solve (coarse levels' are dropped)
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        if est is not None and sc.rtol is not None and not est.met:
+            how = (f"{final.n} time elements (steps given)" if sc.steps is not None
+                   else f"the largest number of time elements ({final.n}, limit {MAX_STEPS})")
+            warnings.warn(f"{sc.mech.name}: estimated error of the peaks {est.peak:.1e} exceeds "
+                          f"rtol = {sc.rtol:.0e} with {how}", AccuracyWarning, stacklevel=3)
+        res = self.result(final, n_out, error=est)
+        total = time.perf_counter() - self.t0
+        kin = self.t_setup + sum(lv.kinematics for lv in self.levels)
+        asm = sum(lv.assembly for lv in self.levels)
+        slv = sum(lv.solve for lv in self.levels)
+        object.__setattr__(res, "timings", Timings(kin, asm, slv, total))
+        log.info("%s: %s, %s levels %s, converged=%s stable=%s %.3f s", sc.mech.name, scheme.name,
+                 len(self.levels), [lv.n for lv in self.levels], final.converged,
+                 res.stable, total)
+        return res

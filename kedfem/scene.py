@@ -11,22 +11,26 @@ from .effects import EFFECTS, ModalDamping, Rayleigh, check_effects
 from .errors import InputError
 from .mechanism import Mechanism
 
-__all__ = ["Scene", "HOLDS", "NONLINEAR_METHODS", "ACCURACY_PRESETS"]
+__all__ = ["Scene", "HOLDS", "NONLINEAR_METHODS", "ACCURACY_PRESETS", "MAX_STEPS"]
 
 HOLDS = ("zoh", "foh", "magnus2")
 NONLINEAR_METHODS = ("fixed-point", "relaxation", "anderson")
+#: Largest number of time elements per cycle a scene may ask for (or a
+#: tolerance-driven solve may reach): the cost grows linearly with it, and
+#: every shipped mechanism converges to 1e-5 far below it.
+MAX_STEPS = 20_000
 
-#: Knobs of ``Scene(accuracy=...)``: ``steps``, ``hold``, ``eps`` and ``delta``
-#: (``None``: matched to the hold). Chosen from the accuracy-versus-cost study
-#: (``benchmarks/accuracy_cost.py``, README "Accuracy versus cost"), which
-#: measures what each preset delivers on the slider-crank, the four-bar and the
-#: mould oscillator.
+#: Knobs of ``Scene(accuracy=...)``: the tolerance ``rtol`` on the peaks, the
+#: non-linear tolerance ``eps`` and the exponentials' ``delta`` (``None``:
+#: matched to the hold). The solve refines its time elements until the error
+#: estimate of every link's peak deflection and stress meets ``rtol``
+#: (README "Accuracy versus cost" shows what each costs).
 ACCURACY_PRESETS: dict[str, dict] = {
-    "fast": dict(steps=90, hold="magnus2", eps=1e-4, delta=1e-8),
-    "default": dict(steps=360, hold="magnus2", eps=1e-6, delta=None),
-    "tight": dict(steps=1440, hold="magnus2", eps=1e-8, delta=None),
+    "fast": dict(rtol=1e-2, eps=1e-4, delta=1e-8),
+    "default": dict(rtol=1e-3, eps=1e-6, delta=None),
+    "tight": dict(rtol=1e-5, eps=1e-8, delta=None),
 }
-_KNOBS = ("steps", "hold", "eps", "delta")
+_KNOBS = ("rtol", "eps", "delta")
 
 
 def _int(owner, name, v, lo):
@@ -44,8 +48,10 @@ class Scene:
     mechanism : Mechanism
         A driven mechanism.
     steps : int, optional
-        Number of time nodes (= time elements) over one cycle, >= 3 (default:
-        from ``accuracy``).
+        Number of time elements over one cycle, >= 3 (for experts). Default:
+        chosen by the solve, doubling from a coarse start until the error
+        estimate of every flexible link's peak deflection and stress meets
+        ``rtol``.
     effects : sequence of str
         Effects to assemble (see :data:`kedfem.effects.EFFECTS`); nothing
         else is assembled, and the response is iterated only if one of them
@@ -54,7 +60,7 @@ class Scene:
         Damping model (``None``: undamped; an undamped system forced near a
         resonance raises :class:`~kedfem.errors.ResonanceError`).
     hold : {"zoh", "foh", "magnus2"}, optional
-        Hold scheme of the state-space discretisation (default: from ``accuracy``).
+        Shorthand for ``method=hold``: one of the paper's exponential holds.
     speed : float, optional
         Speed of the first drive [rad/s] (others keep their ratio); default
         the mechanism's own.
@@ -74,11 +80,25 @@ class Scene:
     name : str
         Label used in reports.
     accuracy : {"fast", "default", "tight"}
-        Preset of ``steps``, ``hold``, ``eps`` and ``delta`` (see
+        Preset of ``rtol`` (1e-2, 1e-3, 1e-5), ``eps`` and ``delta`` (see
         :data:`ACCURACY_PRESETS`); a knob given explicitly wins over the
         preset. The resolved values are the scene's attributes, so
         ``dataclasses.replace(scene, accuracy=...)`` keeps them: use
         :meth:`with_accuracy` to switch presets.
+    method : str
+        Time discretisation (:data:`kedfem.schemes.SCHEMES`): ``"auto"``
+        (Radau IIA collocation, 3 stages), ``"radau3"``, ``"radau2"``,
+        ``"gauss3"``, ``"gauss2"``, or the paper's exponential holds
+        ``"magnus2"``, ``"foh"``, ``"zoh"`` (for experts).
+    rtol : float, optional
+        Relative tolerance on every flexible link's peak deflection and peak
+        stress (default: from ``accuracy``, 1e-3). With ``steps`` given it is
+        only checked: a :class:`~kedfem.errors.AccuracyWarning` says when
+        the estimate exceeds it.
+    estimate : bool
+        Estimate the time-discretisation error (``res.error``). With
+        ``steps`` given this costs two coarser solves (about 0.75 of the
+        solve); a tolerance-driven solve gets it from its refinement.
     """
 
     mechanism: Mechanism
@@ -94,6 +114,9 @@ class Scene:
     reduction: object = None
     name: str = ""
     accuracy: str = "default"
+    method: str = "auto"
+    rtol: float | None = None
+    estimate: bool = True
     _mech: Mechanism = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -106,13 +129,31 @@ class Scene:
                 object.__setattr__(self, k, v)
         if not isinstance(self.mechanism, Mechanism):
             raise InputError(f"{owner}: mechanism must be a kedfem.Mechanism, got {type(self.mechanism).__name__}")
-        _int(owner, "steps", self.steps, 3)
+        if self.steps is not None:
+            _int(owner, "steps", self.steps, 3)
+            if self.steps > MAX_STEPS:
+                raise InputError(f"{owner}: steps must be at most {MAX_STEPS} time elements, got "
+                                 f"{self.steps} (the cost grows linearly with it; a tolerance rtol "
+                                 f"picks the number of elements a result needs)")
+        from . import schemes
+        if self.method not in schemes.names():
+            raise InputError(f"{owner}: method must be one of {', '.join(schemes.names())}, "
+                             f"got {self.method!r}")
+        rt = self.rtol
+        if isinstance(rt, bool) or not isinstance(rt, (int, float, np.floating)) or not (0 < rt < 1):
+            raise InputError(f"{owner}: rtol must be a number in (0, 1), got {rt!r}")
+        if not isinstance(self.estimate, (bool, np.bool_)):
+            raise InputError(f"{owner}: estimate must be True or False, got {self.estimate!r}")
         object.__setattr__(self, "effects", check_effects(self.effects))
         if self.damping is not None and not isinstance(self.damping, (Rayleigh, ModalDamping)):
             raise InputError(f"{owner}: damping must be kf.Rayleigh(...), kf.ModalDamping(...) or None, "
                              f"got {self.damping!r}")
-        if self.hold not in HOLDS:
-            raise InputError(f"{owner}: hold must be one of {', '.join(HOLDS)}, got {self.hold!r}")
+        if self.hold is not None:
+            if self.hold not in HOLDS:
+                raise InputError(f"{owner}: hold must be one of {', '.join(HOLDS)}, got {self.hold!r}")
+            if self.method not in ("auto", self.hold):
+                raise InputError(f"{owner}: hold={self.hold!r} is one of the exponential methods; it "
+                                 f"contradicts method={self.method!r} (give one of them)")
         if self.nonlinear_method not in NONLINEAR_METHODS:
             raise InputError(f"{owner}: nonlinear_method must be one of {', '.join(NONLINEAR_METHODS)}, "
                              f"got {self.nonlinear_method!r}")
@@ -145,9 +186,17 @@ class Scene:
         object.__setattr__(self, "_mech", mech)
 
     def with_accuracy(self, accuracy: str) -> "Scene":
-        """The same scene with the ``steps``, ``hold``, ``eps`` and ``delta`` of another preset."""
+        """The same scene with the ``rtol``, ``eps`` and ``delta`` of another preset."""
         import dataclasses
         return dataclasses.replace(self, accuracy=accuracy, **{k: None for k in _KNOBS})
+
+    @property
+    def scheme(self) -> str:
+        """The time discretisation the solve uses (``method`` with ``"auto"`` and ``hold`` resolved)."""
+        from . import schemes
+        if self.hold is not None:
+            return self.hold
+        return schemes.get(self.method).name
 
     @property
     def mech(self) -> Mechanism:

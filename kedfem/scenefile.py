@@ -12,11 +12,14 @@ Layout (every key is optional except ``mechanism.name``; units in the key
 names or in brackets)::
 
     name = "slider-crank at 1000 rpm"   # label used in reports
-    accuracy = "default"                # "fast" | "default" | "tight": steps, hold, eps, delta
-    steps = 180                         # time nodes per cycle, 3 .. MAX_STEPS
+    accuracy = "default"                # "fast" | "default" | "tight": rtol 1e-2 / 1e-3 / 1e-5
+    rtol = 1e-3                         # tolerance on every link's peak deflection and stress
     speed_rpm = 1000.0                  # speed of the first drive [rev/min]
-    hold = "foh"                        # "zoh" | "foh" | "magnus2"
     effects = ["inertia", "coupling"]   # or "all"
+    # method = "auto"                   # time scheme: auto | radau3 | radau2 | gauss3 | gauss2
+                                        #   | magnus2 | foh | zoh (kedfem.schemes)
+    # steps = 180                       # fixed number of time elements, 3 .. MAX_STEPS (experts)
+    # hold = "foh"                      # = method for the exponential holds zoh | foh | magnus2
 
     [mechanism]
     name = "slider_crank"               # mechanisms.available()
@@ -50,11 +53,11 @@ names or in brackets)::
     speed_rpm = [500, 1000, 1500]
     "mechanism.elements" = [4, 8]
 
-The defaults of ``steps``, ``effects`` and ``damping`` depend on the
-mechanism (:data:`PRESETS`); ``kedfem list`` prints them. With ``accuracy``
-the preset's ``steps``, ``hold``, ``eps`` and ``delta``
-(:data:`kedfem.scene.ACCURACY_PRESETS`) replace the mechanism's; keys given in
-the file still win.
+The defaults of ``effects``, ``damping`` and the solver knobs depend on the
+mechanism (:data:`PRESETS`); ``kedfem list`` prints them. Without ``steps``
+the solve picks the number of time elements that meets ``rtol`` (from
+``accuracy``, :data:`kedfem.scene.ACCURACY_PRESETS`); keys given in the file
+win over the presets.
 """
 
 from __future__ import annotations
@@ -75,7 +78,7 @@ import numpy as np
 
 from .effects import EFFECTS, ModalDamping, Rayleigh
 from .errors import InputError, KedError
-from .scene import ACCURACY_PRESETS, HOLDS, NONLINEAR_METHODS, Scene
+from .scene import ACCURACY_PRESETS, HOLDS, MAX_STEPS, NONLINEAR_METHODS, Scene
 
 __all__ = ["SceneFileError", "Outputs", "Preset", "PRESETS", "SceneSpec", "load_scene", "load_sweep",
            "load_spec", "read_scene_file", "scene_from_dict", "parse_scene", "with_overrides", "mechanism_parameters",
@@ -87,12 +90,6 @@ log = logging.getLogger(__name__)
 #: rad/s per rev/min
 RPM = 2.0 * math.pi / 60.0
 
-#: Largest number of time nodes per cycle. The ``foh`` and ``magnus2`` holds
-#: are second order, so 20 000 nodes already put the discretisation error near
-#: ``(1/20000)^2 ~ 3e-9`` relative, below the non-linear tolerance; beyond that
-#: more steps only cost time (linear in ``steps``) and memory (``steps`` dense
-#: ``2N x 2N`` transition matrices: 6.4 GB for 100 DOFs at 20 000 steps).
-MAX_STEPS = 20_000
 #: Largest number of frame elements per link (cost grows with the cube of the DOF count).
 MAX_ELEMENTS = 200
 #: Largest ``solver.max_iter`` (each iteration is a full periodic solve).
@@ -142,27 +139,29 @@ class Preset:
 
     ``solver`` holds ``(key, value)`` pairs of :class:`~kedfem.scene.Scene`
     solver arguments (``eps``, ``max_iter``, ``nonlinear_method``, ``delta``).
+    ``steps`` None: tolerance-driven.
     """
 
-    steps: int
+    steps: int | None
     effects: tuple[str, ...]
     damping: Rayleigh | ModalDamping | None
-    hold: str = "foh"
+    hold: str | None = None
     solver: tuple[tuple[str, Any], ...] = ()
 
 
 _LINEAR = ("inertia", "coupling", "axial_stiffening")
 
-#: Per-mechanism defaults of ``steps``, ``effects``, ``damping``, ``hold`` and
-#: the solver knobs. The mould oscillator's preset is read from
-#: :func:`kedfem.defaults.default_scene` (see :func:`preset`).
+#: Per-mechanism defaults of ``effects``, ``damping`` and the solver knobs (the
+#: number of time elements follows from the tolerance). The mould
+#: oscillator's preset is read from :func:`kedfem.defaults.default_scene` (see
+#: :func:`preset`).
 PRESETS: dict[str, Preset] = {
-    "slider_crank": Preset(180, _LINEAR, ModalDamping(0.02)),
-    "four_bar": Preset(180, _LINEAR, ModalDamping(0.02)),
-    "six_bar": Preset(180, _LINEAR, ModalDamping(0.02)),
-    "exciter": Preset(180, ("inertia", "coupling", "springs"), ModalDamping(0.02)),
+    "slider_crank": Preset(None, _LINEAR, ModalDamping(0.02)),
+    "four_bar": Preset(None, _LINEAR, ModalDamping(0.02)),
+    "six_bar": Preset(None, _LINEAR, ModalDamping(0.02)),
+    "exciter": Preset(None, ("inertia", "coupling", "springs"), ModalDamping(0.02)),
 }
-_FALLBACK = Preset(180, ("inertia", "coupling"), ModalDamping(0.02))
+_FALLBACK = Preset(None, ("inertia", "coupling"), ModalDamping(0.02))
 
 
 def preset(mechanism: str) -> Preset:
@@ -392,8 +391,8 @@ def check_steps(v, key: str = "steps", source: str | None = None) -> int:
 
 
 # ------------------------------------------------------------------ sections
-_TOP_KEYS = ("name", "accuracy", "steps", "speed_rpm", "hold", "effects", "mechanism", "damping", "solver", "output",
-             "sweep")
+_TOP_KEYS = ("name", "accuracy", "rtol", "method", "steps", "speed_rpm", "hold", "effects", "mechanism",
+             "damping", "solver", "output", "sweep")
 _DAMPING_KEYS = ("model", "alpha", "beta", "zeta")
 _SOLVER_KEYS = ("eps", "max_iter", "nonlinear_method", "delta")
 _OUTPUT_KEYS = ("dir", "plots", "csv", "npz", "vtk", "render", "modes", "scale", "every", "dofs")
@@ -639,18 +638,26 @@ def parse_scene(data: Mapping, *, source: str | None = None, text: str | None = 
     key, params, mech = _mechanism(ctx, data)
     pre = preset(key)
     kw: dict[str, Any] = {}
-    # an accuracy preset replaces the mechanism's steps, hold and solver knobs
+    # an accuracy preset replaces the mechanism's tolerance and solver knobs
     # (keys given in the file still win)
     accuracy = _str(ctx, "accuracy", data["accuracy"], tuple(ACCURACY_PRESETS)) if "accuracy" in data else None
     if accuracy is not None:
         kw["accuracy"] = accuracy
+    if "rtol" in data:
+        kw["rtol"] = _float(ctx, "rtol", data["rtol"], lo=0.0, hi=1.0, lo_open=True, hi_open=True)
+    if "method" in data:
+        from .schemes import names as scheme_names
+        kw["method"] = _str(ctx, "method", data["method"], scheme_names())
     kw["steps"] = _int(ctx, "steps", data["steps"], 3, MAX_STEPS,
-                       " (more nodes cost time and memory without changing the answer; "
-                       "see kedfem.scenefile.MAX_STEPS)") if "steps" in data else (
+                       " (the cost grows linearly with it; rtol picks the number of elements a "
+                       "result needs; see kedfem.scene.MAX_STEPS)") if "steps" in data else (
                            None if accuracy else pre.steps)
     if "speed_rpm" in data:
         kw["speed"] = _float(ctx, "speed_rpm", data["speed_rpm"], nonzero=True, unit=" [rev/min]") * RPM
-    kw["hold"] = _str(ctx, "hold", data["hold"], HOLDS) if "hold" in data else (None if accuracy else pre.hold)
+    # a method given on the command line replaces the file's hold
+    hold_dropped = "method" in ctx.overridden and "hold" not in ctx.overridden
+    kw["hold"] = _str(ctx, "hold", data["hold"], HOLDS) if ("hold" in data and not hold_dropped) else (
+        None if (accuracy or "method" in data) else pre.hold)
     kw["effects"] = _effects(ctx, data["effects"]) if "effects" in data else pre.effects
     kw["damping"] = _damping(ctx, data.get("damping"), pre.damping)
     kw.update({k: v for k, v in pre.solver if not (accuracy and k in ("eps", "delta"))})
@@ -796,8 +803,9 @@ def scene_summary(scene: Scene) -> dict[str, str]:
     return {
         "mechanism": scene.mech.name,
         "speed": f"{sp / RPM:.6g} rpm ({sp:.6g} rad/s), period {scene.period:.6g} s",
-        "steps": str(scene.steps),
-        "hold": scene.hold,
+        "steps": "tolerance-driven" if scene.steps is None else str(scene.steps),
+        "method": scene.scheme,
+        "rtol": f"{scene.rtol:g}",
         "effects": ", ".join(scene.effects),
         "damping": describe_damping(scene.damping),
     }

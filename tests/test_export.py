@@ -97,7 +97,7 @@ def test_vtk_series_reads_back_equal_to_the_result(slider, tmp_path):
 
 def test_every_and_auto_scale(slider, tmp_path):
     s = export.write_vtk_series(slider, tmp_path, every=7)
-    np.testing.assert_array_equal(s.frames, np.arange(0, 60, 7))
+    np.testing.assert_array_equal(s.frames, np.arange(0, slider.n, 7))
     np.testing.assert_array_equal(pv.get_reader(str(s.pvd)).time_values, slider.t[::7])
     mesh = export.mechanism_mesh(slider)
     dmax = np.linalg.norm(mesh.displacement, axis=-1).max()
@@ -162,11 +162,11 @@ def test_interrupted_series_leaves_no_half_written_output(slider, tmp_path, monk
     with pytest.raises(OSError):
         export.write_vtk_series(slider, tmp_path, every=1)
     after = {p: (tmp_path / p).read_bytes() for p in listing(tmp_path) if (tmp_path / p).is_file()}
-    assert after == before and len(s.files) == 6
+    assert after == before and len(s.files) == -(-slider.n // 10)
     # a successful rewrite replaces it completely (no stale frames)
     monkeypatch.setattr(export, "_write_vtu", real)
     export.write_vtk_series(slider, tmp_path, every=20)
-    assert len(list((tmp_path / "response").iterdir())) == 3
+    assert len(list((tmp_path / "response").iterdir())) == -(-slider.n // 20)
     assert not [p for p in listing(tmp_path) if p.startswith(".")]
 
 

@@ -97,7 +97,7 @@ def test_default_mould_scene_file_is_the_builtin_default():
 @pytest.mark.parametrize("path", SCENES, ids=lambda p: p.stem)
 def test_example_scenes_load(path):
     spec = sf.load_spec(path)
-    assert spec.scene.steps >= 3 and spec.scene.effects
+    assert spec.scene.steps is None and spec.scene.rtol == 1e-3 and spec.scene.effects
     if path.stem.endswith("sweep"):
         assert sf.grid_size(spec.sweep) == 8
 

@@ -1,0 +1,299 @@
+"""How far a result is from converged in time: two- and three-level estimates.
+
+A periodic solve on ``n`` time elements is compared with the same solve on
+fewer elements (same scheme, same output instants). With the values ``q_c``
+(coarse, ``n_c`` elements) and ``q_f`` (fine, ``n_f``) of a quantity and the
+convergence rate ``p``, Richardson's argument gives the error of the fine
+value as::
+
+    e_f ~ |q_f - q_c| / ((n_f / n_c)^p - 1)
+
+The rate is *observed* from three levels where they exist (the ratio of
+successive differences), clamped to ``[1, order]`` of the scheme, so a solve
+that is not yet in its asymptotic range is not credited with the scheme's
+nominal order; with two levels it is the scheme's conservative
+``assumed_rate``. Errors are relative: a peak's to the peak, a history's
+(the largest difference over the cycle) to the history's own peak.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InputError
+
+__all__ = ["LinkError", "ErrorEstimate", "Observables", "estimate", "ASSUMED_RATE"]
+
+#: Rate credited to a two-level estimate, per scheme: below the scheme's
+#: asymptotic rate for values read between element ends, so that a pair of
+#: solves before the asymptotic range is not under-estimated.
+ASSUMED_RATE = {"radau3": 3.0, "radau2": 2.0, "gauss3": 3.0, "gauss2": 2.0, "magnus2": 2.0,
+                "foh": 1.0, "zoh": 1.0, "fourier": 2.0}
+
+
+@dataclass(frozen=True)
+class Observables:
+    """What a level of a solve is judged by: per flexible link, its peaks and histories.
+
+    All levels of a solve are read on the same ``n_out`` output instants.
+
+    Attributes
+    ----------
+    links : tuple of str
+    elements : int
+        Time elements of the level.
+    deflection : ndarray, shape (n_links,)
+        Peak |mid-span deflection relative to the chord| [m].
+    deflection_at : ndarray of int, shape (n_links,)
+        Output instant nearest to that peak.
+    stress : ndarray, shape (n_links,)
+        Peak stress [Pa] (0 for links without an extreme-fibre distance).
+    stress_at : ndarray of int, shape (n_links,)
+        Output instant nearest to that peak.
+    stress_station : ndarray of int, shape (n_links,)
+        Station (node) of that peak.
+    deflection_history : tuple of ndarray, each (n_out,)
+        Mid-span deflection relative to the chord [m].
+    stress_history : tuple of ndarray, each (n_out, n_stations)
+        Stress at every station [Pa] (``(n_out, 0)`` without ``c``).
+    has_stress : tuple of bool
+    """
+
+    links: tuple[str, ...]
+    elements: int
+    deflection: np.ndarray
+    deflection_at: np.ndarray
+    stress: np.ndarray
+    stress_at: np.ndarray
+    stress_station: np.ndarray
+    deflection_history: tuple[np.ndarray, ...]
+    stress_history: tuple[np.ndarray, ...]
+    has_stress: tuple[bool, ...]
+
+
+@dataclass(frozen=True)
+class LinkError:
+    """Estimated relative time-discretisation errors of one flexible link.
+
+    Attributes
+    ----------
+    link : str
+    deflection : float
+        Of the peak mid-span deflection (relative to the chord).
+    stress : float
+        Of the peak stress (0 when the section has no extreme-fibre distance).
+    history : float
+        Largest error over the cycle of the mid-span deflection and of the
+        stress at every station, each relative to its own peak.
+    """
+
+    link: str
+    deflection: float
+    stress: float
+    history: float
+
+
+@dataclass(frozen=True)
+class ErrorEstimate:
+    """Estimated time-discretisation error of a result (see the module docstring).
+
+    Attributes
+    ----------
+    links : tuple of LinkError
+    levels : tuple of int
+        Time elements of the solves compared, finest (the result) last.
+    rate : float
+        Convergence rate used (the smallest over the quantities).
+    observed : bool
+        The rate was measured from three levels (else assumed).
+    rtol : float or None
+        Tolerance the solve was asked to meet.
+    history_rate : float
+        Convergence rate used for the histories.
+    resolved : bool
+        The coarser of the two finest levels resolves every mode the drive
+        can excite (one element per period of the highest; see
+        :meth:`kedfem.pipeline._Run.resolution`); an L-stable scheme damps the
+        resonant response of modes it does not resolve alike at every coarse
+        level, and two such levels can agree while both are wrong.
+    """
+
+    links: tuple[LinkError, ...]
+    levels: tuple[int, ...]
+    rate: float
+    observed: bool
+    rtol: float | None = None
+    history_rate: float = 0.0
+    resolved: bool = True
+
+    @property
+    def peak(self) -> float:
+        """Largest estimated relative error of any link's peak deflection or stress."""
+        return max((max(e.deflection, e.stress) for e in self.links), default=0.0)
+
+    @property
+    def history(self) -> float:
+        """Largest estimated relative error of any history over the cycle."""
+        return max((e.history for e in self.links), default=0.0)
+
+    @property
+    def met(self) -> bool:
+        """The peak errors meet ``rtol`` and the estimate can be believed.
+
+        Believed: three levels (a measured rate) whose coarser pair resolves
+        the relevant modes.
+        """
+        return (self.rtol is None or self.peak <= self.rtol) and self.reliable
+
+    @property
+    def reliable(self) -> bool:
+        """Three levels with a measured rate, the coarser two resolving the relevant modes."""
+        return self.observed and self.resolved
+
+    def link(self, name: str) -> LinkError:
+        """The estimate of one link."""
+        for e in self.links:
+            if e.link == name:
+                return e
+        raise InputError(f"no error estimate for link '{name}' "
+                         f"(flexible links: {', '.join(e.link for e in self.links)})")
+
+    def describe(self) -> str:
+        """One line: peak and history errors and how they were obtained."""
+        how = (f"observed rates {self.rate:.1f} / {self.history_rate:.1f}" if self.observed
+               else f"assumed rate {self.rate:.1f}")
+        lv = "/".join(str(n) for n in self.levels)
+        tol = f"; tolerance {self.rtol:.0e} {'met' if self.met else 'NOT MET'}" if self.rtol else ""
+        rel = "" if self.reliable else "; UNRELIABLE: " + (
+            "coarser solve does not resolve the relevant modes" if not self.resolved
+            else "needs three levels")
+        return (f"peaks {self.peak:.1e}, histories {self.history:.1e} (time elements {lv}, {how}"
+                f"{tol}{rel})")
+
+
+def observed_rate(levels, diffs) -> float:
+    """Convergence rate from the differences ``diffs = (|q1 - q0|, |q2 - q1|)`` of three levels.
+
+    Solves ``d1 / d2 = (n0^-p - n1^-p) / (n1^-p - n2^-p)`` for ``p`` (bisection on
+    ``[0, 16]``); ``nan`` when the differences do not shrink.
+    """
+    n0, n1, n2 = (float(x) for x in levels)
+    d1, d2 = (float(x) for x in diffs)
+    if not (d2 > 0.0 and d1 > d2):
+        return math.nan
+
+    def f(p):
+        return (n0 ** -p - n1 ** -p) / (n1 ** -p - n2 ** -p) - d1 / d2
+
+    lo, hi = 0.0, 16.0
+    if f(hi) < 0:
+        return hi
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if f(mid) < 0:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+def _peak_differences(fine: Observables, coarse: Observables) -> np.ndarray:
+    """Relative change of every link's peak deflection and stress, shape (n_links, 2).
+
+    The larger of the change of the peak value and the largest change of its
+    history within half a fine element of the fine peak, so that two levels
+    whose peaks agree by coincidence, or whose difference crosses zero at the
+    peak, do not pass for converged.
+    """
+    n_out = fine.deflection_history[0].shape[0] if fine.links else 1
+    half = max(1, int(round(n_out / (2.0 * fine.elements))))
+
+    def near(hf, hc, k):
+        idx = np.arange(k - half, k + half + 1) % hf.shape[0]
+        return float(np.max(np.abs(hf[idx] - hc[idx])))
+
+    out = np.zeros((len(fine.links), 2))
+    for i in range(len(fine.links)):
+        pk = abs(float(fine.deflection[i]))
+        if pk > 0:
+            out[i, 0] = max(abs(fine.deflection[i] - coarse.deflection[i]),
+                            near(fine.deflection_history[i], coarse.deflection_history[i],
+                                 int(fine.deflection_at[i]))) / pk
+        pk = abs(float(fine.stress[i]))
+        if fine.has_stress[i] and pk > 0:
+            j = int(fine.stress_station[i])
+            out[i, 1] = max(abs(fine.stress[i] - coarse.stress[i]),
+                            near(fine.stress_history[i][:, j], coarse.stress_history[i][:, j],
+                                 int(fine.stress_at[i]))) / pk
+    return out
+
+
+def _history_differences(fine: Observables, coarse: Observables) -> np.ndarray:
+    """Largest relative change over the cycle of every link's histories, shape (n_links,)."""
+    out = np.zeros(len(fine.links))
+    for i in range(len(fine.links)):
+        pairs = [(fine.deflection_history[i], coarse.deflection_history[i])]
+        if fine.has_stress[i]:
+            pairs.append((fine.stress_history[i], coarse.stress_history[i]))
+        for hf, hc in pairs:
+            scale = float(np.max(np.abs(hf)))
+            if scale > 0:
+                out[i] = max(out[i], float(np.max(np.abs(hf - hc))) / scale)
+    return out
+
+
+def _rate(n, d1, d2, assumed):
+    """Credited rate: observed from three levels, clamped to ``[1, assumed]``."""
+    if d1 is None:
+        return assumed
+    r = observed_rate(n, (d1, d2))
+    return min(max(r, 1.0), assumed) if math.isfinite(r) else 1.0
+
+
+def estimate(levels: list[int], obs: list[Observables], *, assumed: float,
+             rtol: float | None = None) -> ErrorEstimate | None:
+    """Error estimate of the finest of the last two or three levels.
+
+    Peaks and histories each get a rate: observed from three levels (the
+    largest relative change over all links and quantities, level to level),
+    clamped to ``[1, assumed]`` (a rate above the conservative one is not
+    credited, one below 1 means the levels are not converging yet), or
+    ``assumed`` with two levels. A peak's change is the larger of the change
+    of its value and the largest change of its history within half a fine
+    element of the peak (:func:`_peak_differences`).
+
+    Parameters
+    ----------
+    levels : list of int
+        Time elements, increasing; the last is the result.
+    obs : list of Observables
+        At the same output instants, one per level.
+    assumed : float
+        Rate credited to a two-level estimate, and the largest credited.
+    rtol : float, optional
+
+    Returns
+    -------
+    ErrorEstimate or None
+        None with a single level.
+    """
+    if len(levels) < 2:
+        return None
+    n = [float(x) for x in levels[-3:]]
+    o = obs[-3:]
+    ratio = n[-1] / n[-2]
+    pk = _peak_differences(o[-1], o[-2])
+    hi = _history_differences(o[-1], o[-2])
+    if len(o) == 3:
+        p_pk = _rate(n, float(_peak_differences(o[1], o[0]).max()), float(pk.max()), assumed)
+        p_hi = _rate(n, float(_history_differences(o[1], o[0]).max()), float(hi.max()), assumed)
+    else:
+        p_pk = p_hi = assumed
+    f_pk, f_hi = ratio ** p_pk - 1.0, ratio ** p_hi - 1.0
+    out = tuple(LinkError(link, float(pk[i, 0] / f_pk), float(pk[i, 1] / f_pk), float(hi[i] / f_hi))
+                for i, link in enumerate(o[-1].links))
+    return ErrorEstimate(out, tuple(int(x) for x in levels[-3:]), float(p_pk), len(o) == 3, rtol,
+                         float(p_hi))
