@@ -14,7 +14,7 @@ from .modal import ModalResult, global_matrices, natural_frequencies
 __version__ = "0.1.0"
 from .statics import StaticResult, static_response
 from .scene import Scene
-from .results import Frequencies, LinkPeaks, PeriodicResult
+from .results import Frequencies, LinkPeaks, PeriodicResult, Stability
 from .pipeline import solve
 from . import periodic, nonlinear
 from .expm import expm

@@ -285,7 +285,10 @@ def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_di
     L.append("")
     mu = np.abs(np.asarray(res.floquet_multipliers))
     rho = float(mu.max()) if mu.size else float("nan")
-    L.append(f"Floquet stability   spectral radius {rho:.6f} -> {'stable' if res.stable else 'UNSTABLE'}")
+    if res.stability is not None:
+        L.append(f"Floquet stability   {res.stability.describe()}")
+    else:
+        L.append(f"Floquet stability   spectral radius {rho:.6g} -> {'stable' if res.stable else 'UNSTABLE'}")
     if sc.state_dependent:
         last = f", last change {res.history[-1]:.2e}" if res.history else ""
         L.append(f"iteration           {res.iterations} linear solves, converged: "

@@ -32,7 +32,7 @@ from .errors import AccuracyWarning, InputError
 from .kinematics import Cycle, kinematics
 from .nonlinear import fixed_point
 from .periodic import _blas_one_thread
-from .results import PeriodicResult, Sampler, Timings
+from .results import PeriodicResult, Sampler, Stability, Timings, stability_verdict
 from .scene import MAX_STEPS, Scene
 
 __all__ = ["solve", "assemble_scene", "START_ELEMENTS", "OUTPUT_STEPS"]
@@ -331,16 +331,29 @@ class _Run:
             g = self._grids[n_out] = (t, self.cycle.at(t), {})
         return g
 
-    def result(self, lv: _Level, n_out: int, error=None, shared_cache: bool = True) -> PeriodicResult:
+    def stability(self, error=None) -> Stability:
+        """Spectral radius of the finest level, its error from the coarser ones, the verdict."""
+        rho = [lv.discrete.spectral_radius for lv in self.levels[-3:]]
+        err = None
+        if len(rho) >= 2 and error is not None:
+            ratio = self.levels[-1].n / self.levels[-2].n
+            err = abs(rho[-1] - rho[-2]) / (ratio ** error.rate - 1.0)
+        return Stability(rho[-1], err, stability_verdict(rho[-1], err), self.scheme.name,
+                         self.levels[-1].n)
+
+    def result(self, lv: _Level, n_out: int, error=None, shared_cache: bool = True,
+               stability: Stability | None = None) -> PeriodicResult:
         """The level read on ``n_out`` equally spaced output instants."""
         t, motion, cache = self._grid(n_out)
         d = lv.discrete
         U, V = d.at(t)
+        stable = stability.verdict == "stable" if stability is not None else bool(d.stable)
         res = PeriodicResult(
             self.scene, self.model, motion, motion.t, motion.crank_angle, U, V,
-            tuple(self.model.dof_labels), d.floquet_multipliers, bool(d.stable), lv.converged,
+            tuple(self.model.dof_labels), d.floquet_multipliers, stable, lv.converged,
             lv.iterations, lv.history, float(d.residual), Timings(0.0, 0.0, 0.0, 0.0), d.method,
-            elements=lv.n, scheme=self.scheme.name, error=error, sampler=Sampler(self.cycle, d))
+            elements=lv.n, scheme=self.scheme.name, error=error, sampler=Sampler(self.cycle, d),
+            stability=stability)
         if shared_cache:
             # the constraint maps depend on the motion only: built once per output grid
             if "beam_map" in cache:
@@ -409,7 +422,7 @@ class _Run:
                    else f"the largest number of time elements ({final.n}, limit {MAX_STEPS})")
             warnings.warn(f"{sc.mech.name}: estimated error of the peaks {est.peak:.1e} exceeds "
                           f"rtol = {sc.rtol:.0e} with {how}", AccuracyWarning, stacklevel=3)
-        res = self.result(final, n_out, error=est)
+        res = self.result(final, n_out, error=est, stability=self.stability(est))
         total = time.perf_counter() - self.t0
         kin = self.t_setup + sum(lv.kinematics for lv in self.levels)
         asm = sum(lv.assembly for lv in self.levels)

@@ -13,7 +13,8 @@ from .assembly import FEModel
 from .errors import InputError
 from .kinematics import Motion
 
-__all__ = ["PeriodicResult", "Frequencies", "Timings", "LinkPeaks", "Sampler"]
+__all__ = ["PeriodicResult", "Frequencies", "Timings", "LinkPeaks", "Sampler", "Stability",
+           "stability_verdict"]
 
 
 @dataclass(frozen=True)
@@ -50,6 +51,48 @@ class Timings:
     assembly: float
     solve: float
     total: float
+
+
+@dataclass(frozen=True)
+class Stability:
+    """Floquet stability of the periodic response, with the accuracy of its spectral radius.
+
+    Attributes
+    ----------
+    spectral_radius : float
+        Largest Floquet multiplier modulus of the result's discretisation.
+    error : float or None
+        Estimated absolute error of ``spectral_radius`` from the coarser
+        solves of the error estimate (None with a single solve).
+    verdict : {"stable", "unstable", "marginal"}
+        ``"marginal"`` when ``1`` lies within ``spectral_radius +- error``
+        (an undamped scene, or one at the onset of an instability).
+    scheme : str
+        Time discretisation of the monodromy matrix.
+    elements : int
+        Its time elements.
+    """
+
+    spectral_radius: float
+    error: float | None
+    verdict: str
+    scheme: str
+    elements: int
+
+    def describe(self) -> str:
+        """One line: spectral radius, its error and the verdict."""
+        err = f" +- {self.error:.1e}" if self.error is not None else ""
+        return f"spectral radius {self.spectral_radius:.6g}{err} -> {self.verdict}"
+
+
+def stability_verdict(rho: float, error: float | None, tol: float = 1e-9) -> str:
+    """``"stable"``, ``"unstable"`` or ``"marginal"`` for a spectral radius and its error."""
+    margin = max(tol, error or 0.0)
+    if rho + margin < 1.0:
+        return "stable"
+    if rho - margin > 1.0:
+        return "unstable"
+    return "marginal"
 
 
 @dataclass(frozen=True)
@@ -114,7 +157,8 @@ class PeriodicResult:
     floquet_multipliers : ndarray, shape (2 n_dof,)
         Eigenvalues of the monodromy matrix (of the last linear solve).
     stable : bool
-        All multipliers inside the unit circle.
+        ``stability.verdict == "stable"``: all multipliers inside the unit
+        circle by more than the estimated error of the spectral radius.
     converged : bool
         The non-linear iteration met its tolerance (True for linear scenes).
     iterations : int
@@ -136,6 +180,8 @@ class PeriodicResult:
         histories (:mod:`kedfem.accuracy`); None if not estimated.
     sampler : Sampler or None
         Reads the response at any instant of the cycle (:meth:`resample`).
+    stability : Stability or None
+        Spectral radius with its estimated error and the verdict.
     """
 
     scene: object
@@ -158,6 +204,7 @@ class PeriodicResult:
     scheme: str = ""
     error: object = None
     sampler: object = field(default=None, repr=False, compare=False)
+    stability: Stability | None = None
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     # ---------------------------------------------------------------- basics
