@@ -706,6 +706,34 @@ class Assembler:
             self._forms = None
         return M, Ks
 
+    def axial_share(self, idx=None) -> np.ndarray:
+        """Share of each DOF's diagonal structural stiffness that the links' axial stiffness carries.
+
+        ``diag(K_axial) / diag(K_structural)`` at time nodes ``idx`` (default
+        all), shape (nt, N): near 1 for the directions a link's axial
+        stiffness holds (its interior axial translations, a slider's travel,
+        a joint translation along a link, a rigid member's rotation resisted
+        by links pushing and pulling on it), near 0 for bending.
+        """
+        if idx is None:
+            idx = np.arange(self.motion.n)
+        idx = np.asarray(idx)
+        b = self.model.beam
+        M, Ks = self.structural(idx)
+        d_all = np.diagonal(Ks, axis1=-2, axis2=-1)
+        if not b.L.size:
+            return np.zeros_like(d_all)
+        mo = slice_motion(self.motion, idx)
+        T = self._beam_kin(mo)[-1]
+        ka = el.frame_stiffness(b.L, b.EA, np.zeros_like(b.EI))  # EI = 0: the axial part alone
+        Kx = np.swapaxes(T, -1, -2) @ ka @ T
+        dyn = self.model.has_moving_maps() or self.model.has_offsets()
+        gm = self.model.group_map("beam", mo, self.model.entity_forms(mo) if dyn else None)
+        E = gm.E
+        Kq = np.broadcast_to(np.swapaxes(E, -1, -2) @ Kx @ E, (idx.size,) + (E.shape[1], E.shape[3], E.shape[3]))
+        d_ax = np.diagonal(self.model.scatter_matrix("beam", Kq), axis1=-2, axis2=-1)
+        return d_ax / np.where(d_all > 0, d_all, 1.0)
+
     def _damping(self, M, Ks):
         d = self.damping
         if isinstance(d, Rayleigh):

@@ -46,11 +46,14 @@ OUTPUT_STEPS = 360
 #: time elements of the first level of a tolerance-driven solve, per scheme (doubled
 #: until the elements resolve the relevant modes, see ``_Run.resolution``)
 START_ELEMENTS = {"radau3": 12, "radau2": 16, "gauss3": 12, "gauss2": 16, "magnus2": 45,
-                  "foh": 45, "zoh": 90}
+                  "foh": 45, "zoh": 90, "fourier": 17}
 #: largest ``omega h`` at which a level counts as resolving a mode (one element per period)
 RESOLVE_OMEGA_H = 2.0 * math.pi
 #: instants of the cycle where the modal frequency bands are sampled
 BAND_INSTANTS = 12
+#: a DOF is stiff for the exact split of the exponential holds when the links' axial
+#: stiffness carries at least this share of its diagonal stiffness at every instant
+AXIAL_SHARE = 0.9
 
 
 class _Chunks:
@@ -178,6 +181,14 @@ def solve(scene: Scene) -> PeriodicResult:
         return _Run(scene).run()
 
 
+def _coarser(scheme, n: int) -> int | None:
+    """The level whose refinement is ``n`` (None below the scheme's minimum)."""
+    for m in range(max(scheme.min_elements, n // 2 - 1), n):
+        if scheme.refine(m) == n:
+            return m
+    return None
+
+
 class _Run:
     """The levels of one solve and their observables on common output instants."""
 
@@ -187,6 +198,12 @@ class _Run:
         self.cycle = Cycle(scene.mech)
         self.model = FEModel(scene.mech, reduction=scene.reduction)
         self.scheme = schemes.get(scene.scheme)
+        self.stiff = None
+        if isinstance(self.scheme, (schemes.ExponentialHold, schemes.Fourier)) and scene.stiff_split:
+            # the directions a link's axial stiffness holds throughout the cycle
+            motion = self.cycle.at(np.arange(72) * (scene.period / 72))
+            share = Assembler(self.model, motion, (), damping=None).axial_share()
+            self.stiff = share.min(axis=0) >= AXIAL_SHARE
         self.levels: list[_Level] = []
         self._grids: dict[int, tuple] = {}
         self._obs: dict[tuple[int, int], accuracy.Observables] = {}
@@ -204,6 +221,8 @@ class _Run:
         asm = Assembler(self.model, motion, sc.effects, damping=sc.damping)
         N = self.model.n_dof
         opts = {"delta": sc.delta} if sc.delta is not None else {}
+        if self.stiff is not None:
+            opts["stiff"] = self.stiff
         state = asm.state_dependent
         caught: list = []
         with warnings.catch_warnings(record=True) as caught:
@@ -246,15 +265,15 @@ class _Run:
         of modes its elements do not resolve, alike at every coarse level, so
         two such levels can agree while both are wrong: the coarser levels of
         an error estimate must resolve (``omega h <= RESOLVE_OMEGA_H``) every
-        mode in the band of the excitation. That band reaches the highest of
-        (a) twice the top of the fundamental's frequency band (the time
-        variation of the system mixes its response into neighbouring modes),
-        (b) the highest harmonic of the rigid-body motion above 1e-6 of its
-        largest (the inertia loads), (c) ``1 / (pi tau)`` of the fastest
-        friction reversal (a regularised step of time scale ``tau`` excites
-        the modes below it). Mode bands come from the co-moving-frame system
-        (the scene's effects, no state terms) at :data:`BAND_INSTANTS`
-        instants of the cycle.
+        mode the drive excites. The excitation reaches (a) the highest
+        harmonic of the rigid-body motion above ``rtol / 1000`` of its
+        largest (the inertia loads and the time variation of ``M, C, K``),
+        (b) ``1 / (pi tau)`` of the fastest friction reversal (a regularised
+        step of time scale ``tau``). A mode is excited when its frequency
+        band (over the cycle) starts within that reach, or within the reach
+        of the time variation around an excited mode (its band's top plus
+        (a)). Bands come from the co-moving-frame system (the scene's
+        effects, no state terms) at :data:`BAND_INSTANTS` instants.
 
         Returns
         -------
@@ -270,15 +289,19 @@ class _Run:
         asm = Assembler(self.model, self.cycle.at(t), sc.effects, damping=sc.damping, frame=True)
         S = asm.system()
         f = np.sort(np.abs(eig_frequencies(S.M, S.K)), axis=1)  # (instants, modes), Hz
-        if not np.any(f[:, -1] > 0):
-            return 1, 0.0
         lo, hi = f.min(axis=0), f.max(axis=0)
-        first = int(np.argmax(hi > 0))
-        band = max(2.0 * float(hi[first]), self._motion_band(), self._friction_band())
-        f_res = float(hi[lo <= band].max())
+        f_kin = self._motion_band(level=1e-3 * sc.rtol)
+        reach = max(f_kin, self._friction_band())
+        excited = lo <= reach
+        if excited.any():  # the time variation mixes an excited mode into its neighbours
+            excited |= lo <= float(hi[excited].max()) + f_kin
+        if not excited.any():
+            log.info("%s: no mode within the excitation (%.4g Hz): quasi-static", sc.mech.name, reach)
+            return 1, 0.0
+        f_res = float(hi[excited].max())
         n = int(math.ceil(2.0 * math.pi * f_res * T / RESOLVE_OMEGA_H))
-        log.info("%s: excitation band %.4g Hz, modes to resolve up to %.4g Hz: >= %d elements",
-                 sc.mech.name, band, f_res, n)
+        log.info("%s: excitation reaches %.4g Hz, modes to resolve up to %.4g Hz: >= %d elements",
+                 sc.mech.name, reach, f_res, n)
         return n, f_res
 
     def _motion_band(self, samples: int = 512, level: float = 1e-6) -> float:
@@ -378,7 +401,8 @@ class _Run:
         est = accuracy.estimate([self.levels[i].n for i in idx], obs,
                                 assumed=accuracy.ASSUMED_RATE.get(self.scheme.name, 1.0),
                                 rtol=self.scene.rtol)
-        resolved = (not self.scheme.l_stable) or self.levels[idx[-2]].n >= need
+        # the exponential holds integrate frozen data exactly (no numerical damping or aliasing)
+        resolved = isinstance(self.scheme, schemes.ExponentialHold) or self.levels[idx[-2]].n >= need
         return dataclasses.replace(est, resolved=bool(resolved))
 
     # ------------------------------------------------------------------- run
@@ -386,9 +410,17 @@ class _Run:
         sc, scheme = self.scene, self.scheme
         est = None
         need, f_res = self.resolution() if (sc.estimate or sc.steps is None) else (0, 0.0)
+        need = int(math.ceil(need * scheme.per_period))
         if sc.steps is not None:
             n = scheme.check_elements(sc.steps)
-            plan = [m for m in (n // 4, n // 2) if m >= scheme.min_elements] if sc.estimate else []
+            plan = []
+            if sc.estimate:  # the two coarser levels whose refinements lead to n
+                m = n
+                for _ in range(2):
+                    m = _coarser(scheme, m)
+                    if m is None:
+                        break
+                    plan.insert(0, m)
             for m in plan + [n]:
                 self.level(m)
             n_out = self.output_steps(n)
@@ -398,19 +430,17 @@ class _Run:
             # double from a start whose second level resolves the relevant modes; the
             # estimate needs three levels (an observed rate) before it is believed
             n = max(START_ELEMENTS.get(scheme.name, 24), scheme.min_elements)
-            while 2 * n < need and 4 * n <= MAX_STEPS:
-                n *= 2
-            log.info("%s: modes up to %.4g Hz need >= %d time elements; levels from %d",
-                     sc.mech.name, f_res, need, n)
+            while scheme.refine(n) < need and scheme.refine(scheme.refine(n)) <= MAX_STEPS:
+                n = scheme.refine(n)
             while True:
                 self.level(n)
                 if len(self.levels) >= 3:
                     est = self.estimate(self.output_steps(n), need)
                     if est.met:
                         break
-                if 2 * n > MAX_STEPS:
+                if scheme.refine(n) > MAX_STEPS:
                     break
-                n *= 2
+                n = scheme.refine(n)
             n_out = self.output_steps(self.levels[-1].n)
             if est is None and len(self.levels) >= 2:
                 est = self.estimate(n_out, need)
@@ -420,8 +450,16 @@ class _Run:
         if est is not None and sc.rtol is not None and not est.met:
             how = (f"{final.n} time elements (steps given)" if sc.steps is not None
                    else f"the largest number of time elements ({final.n}, limit {MAX_STEPS})")
-            warnings.warn(f"{sc.mech.name}: estimated error of the peaks {est.peak:.1e} exceeds "
-                          f"rtol = {sc.rtol:.0e} with {how}", AccuracyWarning, stacklevel=3)
+            if est.peak > sc.rtol:
+                why = f"estimated error of the peaks {est.peak:.1e} exceeds rtol = {sc.rtol:.0e}"
+            elif not est.resolved:
+                why = (f"estimated error of the peaks {est.peak:.1e} cannot be trusted: the coarser "
+                       f"levels do not resolve the modes up to {f_res:.4g} Hz the drive excites "
+                       f"(they need >= {need} time elements)")
+            else:
+                why = (f"estimated error of the peaks {est.peak:.1e} cannot be trusted: no "
+                       f"convergence rate observed over three levels")
+            warnings.warn(f"{sc.mech.name}: {why}, with {how}", AccuracyWarning, stacklevel=3)
         res = self.result(final, n_out, error=est, stability=self.stability(est))
         total = time.perf_counter() - self.t0
         kin = self.t_setup + sum(lv.kinematics for lv in self.levels)

@@ -99,6 +99,10 @@ class Scene:
         Estimate the time-discretisation error (``res.error``). With
         ``steps`` given this costs two coarser solves (about 0.75 of the
         solve); a tolerance-driven solve gets it from its refinement.
+    stiff_split : bool
+        Exponential holds only: carry the DOFs along which a link's axial
+        stiffness acts as static response plus deviation (:mod:`kedfem.split`,
+        an exact change of variables); False is the paper's method literally.
     """
 
     mechanism: Mechanism
@@ -117,6 +121,7 @@ class Scene:
     method: str = "auto"
     rtol: float | None = None
     estimate: bool = True
+    stiff_split: bool = True
     _mech: Mechanism = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):

@@ -20,6 +20,7 @@ name          what                                       order between L-stable
               method, second order)
 ``foh``       exponential, first-order-hold load         2*    2       exact
 ``zoh``       exponential, zero-order hold (the paper)   1     1       exact
+``fourier``   trigonometric collocation, whole cycle     spectral      no
 ============= ========================================== ===== ======= =========
 
 (* first order when the state matrix varies.) "Order" is the order at the
@@ -125,6 +126,12 @@ class Scheme:
 
     #: accepts non-uniform element edges (graded time elements)
     graded: bool = False
+    #: elements (or nodes) per period of the highest mode a level must resolve
+    per_period: float = 1.0
+
+    def refine(self, n: int) -> int:
+        """Time elements of the next finer level (about twice ``n``)."""
+        return 2 * n
 
     def instants(self, n: int, period: float, edges=None) -> np.ndarray:
         """Instants (n * stages,) [s] where ``M, C, K, Q`` are needed, element by element.
@@ -183,9 +190,21 @@ class ExponentialHold(Scheme):
             raise InputError(f"{self.name}: the exponential holds take equal time elements only")
         return np.arange(n) * (period / n)
 
-    def solve(self, M, C, K, Q, period, n, *, dC=None, dK=None, dQ=None, edges=None, **options):
+    def solve(self, M, C, K, Q, period, n, *, dC=None, dK=None, dQ=None, edges=None, stiff=None,
+              **options):
+        """As :meth:`Scheme.solve`; ``stiff`` (N,) bool: DOFs the exact stiff split
+        (:mod:`kedfem.split`) carries as static response plus deviation (None: no split)."""
         if edges is not None:
             raise InputError(f"{self.name}: the exponential holds take equal time elements only")
+        sp = None
+        if stiff is not None and np.any(stiff) and not callable(K) and not callable(M) \
+                and np.ndim(K) == 3 and np.ndim(M) == 3:
+            from .split import build
+            sp = build(np.asarray(M, float), np.asarray(K, float), period, stiff)
+        if sp is not None:
+            C = np.broadcast_to(C, K.shape)
+            M, C, K, Q = sp.reduce(M, C, K, Q)
+            dC, dK, dQ = sp.reduce_linearised(dC, dK, dQ)
         if self.hold == "zoh" or (dK is None and dC is None and dQ is None):
             if dC is not None:
                 C = C + dC
@@ -199,7 +218,7 @@ class ExponentialHold(Scheme):
             # node (see periodic.solve's Kz, Cz, Qz)
             sol = periodic.solve(M, C, K, Q, period, hold=self.hold, n=n, Kz=dK, Cz=dC, Qz=dQ,
                                  **options)
-        U, V = sol.U, sol.V
+        U, V = (sol.U, sol.V) if sp is None else sp.recover(sol.U, sol.V)
 
         def at(t):
             return hermite(U, V, period, t)
@@ -252,7 +271,8 @@ class Collocation(Scheme):
     def instants(self, n, period, edges=None):
         return collocation.instants(self.name, n, period, edges).ravel()
 
-    def solve(self, M, C, K, Q, period, n, *, dC=None, dK=None, dQ=None, edges=None, **options):
+    def solve(self, M, C, K, Q, period, n, *, dC=None, dK=None, dQ=None, edges=None, stiff=None,
+              **options):
         options.pop("delta", None)  # no exponentials
         if dC is not None:
             C = C + dC
@@ -268,9 +288,62 @@ class Collocation(Scheme):
                         lambda: (sol.stage_U.reshape(n * s, N), sol.stage_V.reshape(n * s, N)))
 
 
+class Fourier(Scheme):
+    """Fourier (trigonometric) collocation over the whole cycle (:mod:`kedfem.fourier`).
+
+    ``n`` is the number of nodes (odd). Spectrally accurate for smooth data
+    once the nodes resolve the response; one dense system of size ``n N``
+    (GMRES beyond :data:`kedfem.fourier.DENSE_LIMIT`), so it pays for small
+    models and few nodes. Its Floquet multipliers come from the ``magnus2``
+    monodromy on the same nodes (with the exact stiff split when given).
+    """
+
+    name = "fourier"
+    order = 8           # spectral: faster than any power once resolved; 8 for the tables
+    dense_order = 8
+    stages = 1
+    l_stable = False
+    min_elements = 5
+    per_period = 2.0    # two nodes per period of the highest harmonic (Nyquist)
+
+    def refine(self, n):
+        return 2 * n - 1  # odd stays odd
+
+    def check_elements(self, n):
+        n = super().check_elements(n)
+        if n % 2 == 0:
+            raise InputError(f"fourier: the number of nodes must be odd (every harmonic up to "
+                             f"(n - 1) / 2 represented whole), got {n}")
+        return n
+
+    def instants(self, n, period, edges=None):
+        if edges is not None:
+            raise InputError("fourier: the nodes are equally spaced")
+        return np.arange(n) * (period / n)
+
+    def solve(self, M, C, K, Q, period, n, *, dC=None, dK=None, dQ=None, edges=None, stiff=None,
+              **options):
+        from . import fourier
+        if edges is not None:
+            raise InputError("fourier: the nodes are equally spaced")
+        for X, name in ((M, "M"), (C, "C"), (K, "K"), (Q, "Q")):
+            if callable(X):
+                raise InputError(f"fourier: {name} must be sampled (the whole cycle is one system)")
+        Ct = C if dC is None else C + dC
+        Kt = K if dK is None else K + dK
+        Qt = Q if dQ is None else Q + dQ
+        sol = fourier.solve(M, Ct, Kt, Qt, period)
+        # Floquet multipliers: the exponential monodromy on the same nodes (Fourier collocation has none)
+        mono = SCHEMES["magnus2"].solve(M, Ct, Kt, np.zeros_like(np.asarray(Qt, float)), period, n,
+                                        stiff=stiff, **{k: v for k, v in options.items() if k == "delta"})
+        U, V = sol.U, sol.V
+        return Discrete(self.name, n, period, U, V, mono.floquet_multipliers, mono.stable, sol.residual,
+                        sol.method, sol, sol.at, lambda: (U, V))
+
+
 SCHEMES: dict[str, Scheme] = {s.name: s for s in (
     Collocation("radau3"), Collocation("radau2"), Collocation("gauss3"), Collocation("gauss2"),
-    ExponentialHold("magnus2"), ExponentialHold("foh"), ExponentialHold("zoh"),
+    ExponentialHold("magnus2"), ExponentialHold("foh"), ExponentialHold("zoh"), Fourier(),
 )}
 
 
