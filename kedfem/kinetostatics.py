@@ -242,14 +242,18 @@ def kinetostatics(mech: Mechanism, motion: Motion, *, inertia: bool = True,
                        "determinate mechanism")
     scale = np.maximum(np.max(np.abs(A), axis=(1, 2)), 1e-300)
     try:
-        x = np.linalg.solve(A, b[..., None])[..., 0]
+        # the inverse gives the solution and a 1-norm condition number (within a factor
+        # n_eq of the 2-norm one) at a third of the cost of a batched SVD
+        Ainv = np.linalg.inv(A)
     except np.linalg.LinAlgError:
         raise KedError(f"{mech.name}: kinetostatic equations are singular (toggle position or a "
                        "redundant support); joint forces are not unique") from None
+    x = np.einsum("nij,nj->ni", Ainv, b)
     res = np.einsum("nij,nj->ni", A, x) - b
     bscale = np.maximum(np.max(np.abs(b), axis=1), np.max(np.abs(x), axis=1) * scale)
     rel = float(np.max(np.abs(res).max(axis=1) / np.maximum(bscale, 1e-300))) if n_eq else 0.0
-    cond = np.linalg.cond(A / scale[:, None, None]) if n_eq else np.ones(1)
+    cond = (np.abs(A).sum(axis=1).max(axis=1) * np.abs(Ainv).sum(axis=1).max(axis=1)
+            if n_eq else np.ones(1))
     if not np.all(np.isfinite(x)) or np.max(cond) > 1e12:
         raise KedError(f"{mech.name}: kinetostatic equations are ill-conditioned (condition "
                        f"{np.max(cond):.3g}); the mechanism passes a toggle position or is "

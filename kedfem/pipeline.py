@@ -43,6 +43,9 @@ log = logging.getLogger(__name__)
 STREAM_BYTES = 400e6
 #: least number of output instants per cycle (1 degree of crank)
 OUTPUT_STEPS = 360
+#: tolerance of the non-linear iteration on the levels of a tolerance-driven solve,
+#: as a fraction of ``rtol`` (the last level goes on to the scene's ``eps``)
+COARSE_EPS = 0.1
 #: time elements of the first level of a tolerance-driven solve, per scheme (doubled
 #: until the elements resolve the relevant modes, see ``_Run.resolution``)
 START_ELEMENTS = {"radau3": 12, "radau2": 16, "gauss3": 12, "gauss2": 16, "magnus2": 45,
@@ -205,14 +208,21 @@ class _Run:
             share = Assembler(self.model, motion, (), damping=None).axial_share()
             self.stiff = share.min(axis=0) >= AXIAL_SHARE
         self.levels: list[_Level] = []
+        self._continue = None
         self._grids: dict[int, tuple] = {}
         self._obs: dict[tuple[int, int], accuracy.Observables] = {}
         self.t_setup = time.perf_counter() - self.t0
 
     # ---------------------------------------------------------------- levels
-    def level(self, n: int) -> _Level:
-        """Solve on ``n`` time elements (warm start from the previous level)."""
+    def level(self, n: int, eps: float | None = None) -> _Level:
+        """Solve on ``n`` time elements (warm start from the previous level).
+
+        ``eps``: tolerance of the non-linear iteration on this level (default
+        the scene's); :meth:`finish` tightens the last level to the scene's.
+        """
         sc, scheme = self.scene, self.scheme
+        eps = sc.eps if eps is None else max(eps, sc.eps)
+        self._continue = None
         period = sc.period
         ta = time.perf_counter()
         ti = scheme.instants(n, period)
@@ -244,9 +254,11 @@ class _Run:
 
                     x0 = self.levels[-1].discrete.at(ti) if self.levels else None
                     d, hist, converged, _msg = fixed_point(
-                        G, ti.size, N, period, eps=sc.eps, max_iter=sc.max_iter,
+                        G, ti.size, N, period, eps=eps, max_iter=sc.max_iter,
                         method=sc.nonlinear_method, x0=x0)
                     iters, hist = len(hist), tuple(float(h) for h in hist)
+                    if eps > sc.eps:  # what finish() needs to go on to the scene's eps
+                        self._continue = (G, ti.size, N, period)
                 else:
                     M, C, K = (_constant_or_sampled(X) for X in (terms.M, terms.C, terms.K))
                     d = scheme.solve(M, C, K, terms.Q, period, n, **opts)
@@ -257,6 +269,27 @@ class _Run:
                  iters, d.spectral_radius, td - ta)
         self.levels.append(lv)
         return lv
+
+    def finish(self) -> None:
+        """Iterate the last level on to the scene's ``eps`` if it was solved looser."""
+        if self._continue is None:
+            return
+        sc = self.scene
+        G, n_i, N, period = self._continue
+        lv = self.levels[-1]
+        t0 = time.perf_counter()
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            d, hist, converged, _msg = fixed_point(
+                G, n_i, N, period, eps=sc.eps, max_iter=max(1, sc.max_iter - lv.iterations),
+                method=sc.nonlinear_method, x0=lv.discrete.instant_states())
+        self.levels[-1] = dataclasses.replace(
+            lv, discrete=d, converged=bool(converged), iterations=lv.iterations + len(hist),
+            history=lv.history + tuple(float(h) for h in hist),
+            solve=lv.solve + time.perf_counter() - t0, caught=list(caught))
+        i = len(self.levels) - 1
+        self._obs = {k: v for k, v in self._obs.items() if k[0] != i}
+        self._continue = None
 
     def resolution(self) -> tuple[int, float]:
         """Fewest time elements that resolve the modes the drive can excite.
@@ -432,8 +465,11 @@ class _Run:
             n = max(START_ELEMENTS.get(scheme.name, 24), scheme.min_elements)
             while scheme.refine(n) < need and scheme.refine(scheme.refine(n)) <= MAX_STEPS:
                 n = scheme.refine(n)
+            # the levels' non-linear iteration stops at a tenth of rtol (their differences
+            # are of the order of rtol); the last one then goes on to the scene's eps
+            eps_level = max(sc.eps, COARSE_EPS * sc.rtol) if sc.rtol is not None else sc.eps
             while True:
-                self.level(n)
+                self.level(n, eps=eps_level)
                 if len(self.levels) >= 3:
                     est = self.estimate(self.output_steps(n), need)
                     if est.met:
@@ -441,6 +477,10 @@ class _Run:
                 if scheme.refine(n) > MAX_STEPS:
                     break
                 n = scheme.refine(n)
+            if self._continue is not None:
+                self.finish()
+                if len(self.levels) >= 3:
+                    est = self.estimate(self.output_steps(self.levels[-1].n), need)
             n_out = self.output_steps(self.levels[-1].n)
             if est is None and len(self.levels) >= 2:
                 est = self.estimate(n_out, need)
