@@ -1,0 +1,201 @@
+"""The time schemes of the periodic solve against independent truth.
+
+References: the periodic solution of a damped, parametrically excited 2-DOF
+system computed by ``scipy.integrate.solve_ivp`` (DOP853, rtol 1e-13: the
+monodromy matrix and the particular solution over one period, then the
+periodicity condition); the first instability tongue of the Mathieu equation
+from ``scipy.special.mathieu_a`` / ``mathieu_b``; the converged four-bar by
+Radau collocation for the exact stiff split of the exponential holds; power
+laws with known rates for the rate estimate.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+from scipy.special import mathieu_a, mathieu_b
+
+import kedfem as kf
+from kedfem import accuracy, fourier, schemes
+from kedfem.errors import InputError, InstabilityWarning
+from kedfem.results import stability_verdict
+
+T = 1.0
+W = 2 * math.pi / T
+M0 = np.array([[1.0, 0.0], [0.0, 2.0]])
+C0 = np.array([[0.4, -0.1], [-0.1, 0.3]])
+K0 = np.array([[60.0, -20.0], [-20.0, 90.0]])
+K1 = np.array([[15.0, 5.0], [5.0, -10.0]])
+
+
+def K(t):
+    return K0 + K1 * np.cos(W * np.asarray(t, float))[..., None, None]
+
+
+def Q(t):
+    t = np.asarray(t, float)
+    return np.stack([np.sin(W * t) + 0.3 * np.cos(2 * W * t), 0.5 * np.cos(W * t + 0.4)], axis=-1)
+
+
+@pytest.fixture(scope="module")
+def reference():
+    """Dense periodic solution and Floquet multipliers by solve_ivp (DOP853)."""
+    N = 2
+    Mi = np.linalg.inv(M0)
+
+    def A(t):
+        return np.block([[np.zeros((N, N)), np.eye(N)], [-Mi @ K(t), -Mi @ C0]])
+
+    def f(t, y):
+        z = y.reshape(2 * N, 2 * N + 1)
+        dz = A(t) @ z
+        dz[N:, -1] += Mi @ Q(t)
+        return dz.ravel()
+
+    y0 = np.hstack([np.eye(2 * N), np.zeros((2 * N, 1))]).ravel()
+    s = solve_ivp(f, (0, T), y0, method="DOP853", rtol=1e-13, atol=1e-14)
+    Z = s.y[:, -1].reshape(2 * N, 2 * N + 1)
+    Phi, d = Z[:, :2 * N], Z[:, -1]
+    x0 = np.linalg.solve(np.eye(2 * N) - Phi, d)
+    s2 = solve_ivp(lambda t, x: A(t) @ x + np.concatenate([np.zeros(N), Mi @ Q(t)]), (0, T), x0,
+                   method="DOP853", rtol=1e-13, atol=1e-14, dense_output=True)
+    return s2.sol, np.linalg.eigvals(Phi)
+
+
+def _solve(name, n):
+    sc = schemes.get(name)
+    ti = sc.instants(n, T)
+    return sc.solve(M0, C0, K(ti), Q(ti), T, n)
+
+
+def _rel(U, X):
+    return float(np.abs(U - X[:2].T).max() / np.abs(X[:2]).max())
+
+
+@pytest.mark.parametrize("name, order, dense_order", [
+    ("radau2", 3, 2.8), ("radau3", 5, 3.8), ("gauss2", 4, 2.8), ("gauss3", 6, 3.8)])
+def test_collocation_orders_at_the_nodes_and_between(reference, name, order, dense_order):
+    sol, _mu = reference
+    ns = (12, 24, 48)
+    nodal, between = [], []
+    for n in ns:
+        d = _solve(name, n)
+        tk = np.arange(n) * T / n
+        nodal.append(_rel(d.U, sol(tk)))
+        tm = (np.arange(n) + 0.37) * T / n
+        between.append(_rel(d.at(tm)[0], sol(tm)))
+    slopes = [math.log2(nodal[i] / nodal[i + 1]) for i in range(2)]
+    assert all(abs(s - order) < 0.3 for s in slopes), (name, nodal, slopes)
+    dslope = math.log2(between[1] / between[2])
+    assert dslope >= dense_order, (name, between)
+    assert nodal[-1] < 2e-3
+
+
+@pytest.mark.parametrize("name, n, tol", [("radau3", 48, 1e-6), ("gauss3", 24, 1e-6), ("magnus2", 720, 1e-4)])
+def test_floquet_multipliers_match_the_integrated_monodromy(reference, name, n, tol):
+    _sol, mu = reference
+    d = _solve(name, n)
+    got = np.sort(np.abs(d.floquet_multipliers))
+    assert np.abs(got - np.sort(np.abs(mu))).max() < tol
+
+
+def test_fourier_collocation_is_spectral_and_its_two_solvers_agree(reference):
+    sol, _mu = reference
+    errs = [_rel(_solve("fourier", n).U, sol(np.arange(n) * T / n)) for n in (9, 15)]
+    assert errs[0] < 1e-5 and errs[1] < 1e-10, errs
+    n = 21
+    ti = schemes.get("fourier").instants(n, T)
+    a = fourier.solve(M0, C0, K(ti), Q(ti), T)
+    b = fourier.solve(M0, C0, K(ti), Q(ti), T, dense_limit=10)   # forces preconditioned GMRES
+    assert b.method == "gmres" and a.method == "dense"
+    assert np.abs(a.U - b.U).max() < 1e-10 * np.abs(a.U).max()
+    # the differentiation matrix is exact on trigonometric polynomials of degree (n - 1) / 2
+    t = np.arange(n) * T / n
+    D = fourier.differentiation(n, T)
+    f = np.sin(3 * W * t) + np.cos(10 * W * t)
+    assert np.allclose(D @ f, 3 * W * np.cos(3 * W * t) - 10 * W * np.sin(10 * W * t), atol=1e-9 * W * 10)
+
+
+def test_scheme_registry_and_bad_input():
+    assert schemes.get("auto") is schemes.get(schemes.AUTO)
+    assert set(schemes.names()) >= {"auto", "radau3", "radau2", "gauss3", "gauss2", "magnus2", "foh", "zoh",
+                                    "fourier"}
+    with pytest.raises(InputError, match="radau3"):
+        schemes.get("rk4")
+    with pytest.raises(InputError, match="odd"):
+        schemes.get("fourier").check_elements(20)
+    with pytest.raises(InputError, match="odd"):
+        fourier.differentiation(8, T)
+    assert schemes.get("fourier").refine(9) == 17 and schemes.get("radau3").refine(12) == 24
+
+
+def _rho(a, q, name, n, c=0.0):
+    sc = schemes.get(name)
+    ti = sc.instants(n, math.pi)
+    Kt = (a - 2 * q * np.cos(2 * ti))[:, None, None]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", InstabilityWarning)
+        d = sc.solve(np.eye(1), np.full((1, 1), c), Kt, np.zeros((ti.size, 1)), math.pi, n)
+    return float(np.abs(d.floquet_multipliers).max())
+
+
+def _edge(q, name, n, outside, inside):
+    """Bisection for the tongue boundary between an a outside and one inside."""
+    for _ in range(34):
+        mid = 0.5 * (outside + inside)
+        if _rho(mid, q, name, n) > 1 + 1e-9:
+            inside = mid
+        else:
+            outside = mid
+    return 0.5 * (outside + inside)
+
+
+@pytest.mark.parametrize("q", [0.1, 1.0])
+def test_mathieu_first_tongue(q):
+    """u'' + (a - 2 q cos 2t) u = 0: unstable for b1(q) < a < a1(q) (scipy's characteristic values)."""
+    b1, a1 = mathieu_b(1, q), mathieu_a(1, q)
+    mid = 0.5 * (a1 + b1)
+    # the scheme of the stability verdict (Radau IIA), 32 elements a period
+    assert abs(_edge(q, "radau3", 32, b1 - 0.2, mid) - b1) < 1e-6
+    assert abs(_edge(q, "radau3", 32, a1 + 0.2, mid) - a1) < 1e-6
+    # the paper's method, second order: 1e-4 at 1024 elements
+    assert abs(_edge(q, "magnus2", 1024, b1 - 0.2, mid) - b1) < 1e-4
+    # the verdict, with the error band of a coarser solve: undamped outside the tongue the
+    # multipliers lie on the unit circle (marginal); lightly damped, stable; inside, unstable
+    for a, c, want in ((b1 - 0.05, 0.0, "marginal"), (b1 - 0.05, 0.02, "stable"), (mid, 0.02, "unstable")):
+        rho, rho_c = _rho(a, q, "radau3", 32, c), _rho(a, q, "radau3", 16, c)
+        assert stability_verdict(rho, abs(rho - rho_c)) == want, (a, c, rho, rho_c)
+
+
+@pytest.fixture(scope="module")
+def four_bar():
+    import mechanisms
+    return mechanisms.build("four_bar"), dict(effects=("inertia", "coupling", "axial_stiffening"),
+                                              damping=kf.ModalDamping(0.02))
+
+
+def _peaks(res):
+    return np.array([[p.deflection, p.stress] for p in res.peaks()])
+
+
+def test_stiff_split_makes_the_paper_hold_converge_on_a_closed_loop(four_bar):
+    """magnus2 on the four-bar: the held, turning axial stiffness rings without the split."""
+    m, kw = four_bar
+    ref = _peaks(kf.solve(kf.Scene(m, steps=384, method="radau3", estimate=False, **kw)))
+    err = {}
+    for split in (True, False):
+        r = kf.solve(kf.Scene(m, steps=360, method="magnus2", estimate=False, stiff_split=split, **kw))
+        err[split] = float(np.abs(_peaks(r) / ref - 1).max())
+    assert err[True] < 0.1 and err[False] > 0.5, err
+
+
+def test_observed_rate_recovers_a_power_law():
+    for p in (1.0, 2.0, 4.5):
+        lv = (24, 48, 96)
+        e = [3.0 * n ** -p for n in lv]
+        assert accuracy.observed_rate(lv, (e[0] - e[1], e[1] - e[2])) == pytest.approx(p, rel=1e-6)
+    assert math.isnan(accuracy.observed_rate((24, 48, 96), (1e-3, 2e-3)))  # not converging
