@@ -1,4 +1,4 @@
-"""The accuracy-versus-cost study (``kedfem bench``) and the accuracy presets of a scene."""
+"""The accuracy presets and tolerances of a scene."""
 
 import csv
 import math
