@@ -199,3 +199,13 @@ def test_observed_rate_recovers_a_power_law():
         e = [3.0 * n ** -p for n in lv]
         assert accuracy.observed_rate(lv, (e[0] - e[1], e[1] - e[2])) == pytest.approx(p, rel=1e-6)
     assert math.isnan(accuracy.observed_rate((24, 48, 96), (1e-3, 2e-3)))  # not converging
+
+
+def test_default_stability_of_the_four_bar_agrees_with_the_split_exponential(four_bar):
+    """The verdict's spectral radius (Radau, finest level) within its error of magnus2 + split."""
+    m, kw = four_bar
+    res = kf.solve(kf.Scene(m, **kw))
+    ref = kf.solve(kf.Scene(m, steps=2880, method="magnus2", estimate=False, **kw)).stability.spectral_radius
+    s = res.stability
+    assert s.verdict == "stable" and s.scheme == "radau3"
+    assert s.error is not None and abs(s.spectral_radius - ref) <= max(s.error, 1e-6), (s, ref)
