@@ -22,3 +22,4 @@ from .validation import ValidationReport, validate, table3
 from .defaults import default_scene
 from .scenefile import SceneFileError, load_scene, scene_from_dict
 from .reduction import CraigBampton
+from .mesh_check import MeshError, mesh_error

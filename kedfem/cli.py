@@ -229,7 +229,7 @@ def _fmt_angle(a: float) -> str:
 
 
 def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_dir: Path | None,
-                   source: str, scene_time: float) -> str:
+                   source: str, scene_time: float, mesh=None) -> str:
     """The summary table printed by ``kedfem run``."""
     import numpy as np
 
@@ -280,6 +280,14 @@ def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_di
             L.append(f"  time-discretisation error: {err.describe()}")
         else:
             L.append("  time-discretisation error: not estimated (estimate = false)")
+        if mesh is not None:
+            L.append(f"  mesh error (not in the +- columns): {mesh.describe()}")
+            for e in mesh.links:
+                if e.deflection is not None:
+                    st = f", stress {e.stress:.1e}" if e.stress is not None else ""
+                    L.append(f"    {e.link:<16s} deflection {e.deflection:.1e}{st}")
+        else:
+            L.append("  mesh error: not estimated (--no-mesh-check, or no link has two elements)")
     else:
         L.append("peak response: no flexible links")
     L.append("")
@@ -370,6 +378,11 @@ def _cmd_run(args) -> int:
             freqs = res.frequencies(args.n_modes, nodes=list(range(0, res.n, max(1, res.n // 180))))
     with stage("peaks"):
         peaks = res.peaks()
+    mesh = None
+    if not args.no_mesh_check:
+        from .mesh_check import mesh_error
+        with stage("mesh check"):
+            mesh = mesh_error(res)
     files = _write_outputs(
         res, freqs, peaks, out_dir, stage, plots=o.plots and not args.no_plots,
         csv=o.csv and not args.no_csv, npz=o.npz and not args.no_npz, vtk=o.vtk and not args.no_vtk,
@@ -378,7 +391,7 @@ def _cmd_run(args) -> int:
         every=args.every or o.every, dofs=dofs)
     total = time.perf_counter() - t0
     text = format_summary(res, freqs, peaks, stages=stage.times, files=files, out_dir=out_dir, source=ld.source,
-                          scene_time=total)
+                          scene_time=total, mesh=mesh)
     if files:
         from .export import atomic_path
         with atomic_path(out_dir / "summary.txt") as tmp:
@@ -622,6 +635,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--n-modes", type=_int_range(1, 24), default=4, metavar="N",
                    help="natural frequencies reported (default 4)")
     r.add_argument("--dofs", metavar="L1,L2", help="DOF labels for the displacement plot")
+    r.add_argument("--no-mesh-check", action="store_true",
+                   help="do not estimate the mesh error (a second solve with half the elements per link)")
     r.add_argument("--strict", action="store_true",
                    help=f"exit with status {EXIT_STRICT} if the iteration did not converge, the response is "
                    "unstable, or the estimated error exceeds the tolerance")
