@@ -339,8 +339,8 @@ class _Run:
 
     def _motion_band(self, samples: int = 512, level: float = 1e-6) -> float:
         """Highest frequency [Hz] of the rigid-body motion's harmonics above ``level``."""
+        mo = self._band_motion(samples)
         T = self.scene.period
-        mo = self.cycle.at(np.arange(samples) * (T / samples))
         X = np.concatenate([x.reshape(samples, -1) for x in (mo.a, mo.alpha, mo.omega ** 2, mo.sdd)
                             if x.size], axis=1)
         F = np.abs(np.fft.rfft(X, axis=0))[1:]
@@ -351,17 +351,25 @@ class _Run:
         env = (F[:, keep] / amp[keep]).max(axis=1)
         return float((np.flatnonzero(env > level).max() + 1) / T)
 
-    def _friction_band(self, samples: int = 4096) -> float:
+    def _band_motion(self, samples: int):
+        """The rigid-body motion at ``samples`` equally spaced instants (computed once)."""
+        cache = self.__dict__.setdefault("_band_cache", {})
+        if samples not in cache:
+            cache[samples] = self.cycle.at(np.arange(samples) * (self.scene.period / samples))
+        return cache[samples]
+
+    def _friction_band(self, samples: int = 512) -> float:
         """``1 / (pi tau)`` [Hz] of the fastest reversal of the mechanism's friction forces.
 
         A force ``-F tanh((v . axis - v_ref) / s)`` reverses where the
-        rigid-body velocity crosses ``v_ref``, over ``tau = s / |a . axis|``.
+        rigid-body velocity crosses ``v_ref``, over ``tau = s / |a . axis|``
+        (``a`` the larger of its values at the two samples around the
+        crossing: the acceleration is smooth on the scale of a sample).
         """
         mech = self.scene.mech
         if not mech.frictions or "loads" not in self.scene.effects:
             return 0.0
-        T = self.scene.period
-        mo = self.cycle.at(np.arange(samples) * (T / samples))
+        mo = self._band_motion(samples)
         out = 0.0
         for fr in mech.frictions.values():
             ax = np.asarray(fr.axis, dtype=float)
@@ -371,7 +379,8 @@ class _Run:
             a = np.abs(mo.a[:, j] @ ax)
             cross = np.flatnonzero(np.sign(v) != np.sign(np.roll(v, -1)))
             if cross.size:
-                out = max(out, float(a[cross].max()) / (math.pi * fr.smoothing))
+                a_c = np.maximum(a[cross], np.roll(a, -1)[cross])
+                out = max(out, float(a_c.max()) / (math.pi * fr.smoothing))
         return out
 
     # ----------------------------------------------------------- output grid
