@@ -582,8 +582,12 @@ def _cmd_list(args) -> int:
     from .schemes import SCHEMES
     print("\ntime schemes (method = ...; 'auto' is radau3):")
     for sch in SCHEMES.values():
+        if sch.name == "fourier":
+            print(f"  {sch.name:<10s} spectral, trigonometric collocation over the whole cycle (odd number "
+                  "of nodes; small smooth models)")
+            continue
         print(f"  {sch.name:<10s} order {sch.order}, {sch.stages} instant(s) per element"
-              f"{', L-stable' if sch.l_stable else ''}")
+              f"{', L-stable' if sch.l_stable else ''}{' (the paper: exponential hold)' if sch.stages == 1 else ''}")
     print(f"holds (the exponential methods): {', '.join(HOLDS)}; non-linear methods: {', '.join(NONLINEAR_METHODS)}")
     print("damping models: rayleigh (alpha [1/s], beta [s]), modal (zeta [-]), none")
     return 0
