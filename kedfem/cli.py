@@ -318,14 +318,15 @@ def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_di
 
 
 def _write_outputs(res, freqs, peaks, out_dir: Path, stage: _Stage, *, plots: bool, csv: bool,
-                   npz: bool, vtk: bool, render: bool, modes: int, scale, every: int, dofs) -> list[Path]:
+                   npz: bool, vtk: bool, render: bool, modes: int, scale, every: int, dofs,
+                   mesh=None) -> list[Path]:
     from . import export
     files: list[Path] = []
     out_dir.mkdir(parents=True, exist_ok=True)
     if csv:
         with stage("csv"):
             files.append(export.write_response_csv(res, out_dir / "response.csv"))
-            files.append(export.write_peaks_csv(res, out_dir / "peaks.csv", peaks))
+            files.append(export.write_peaks_csv(res, out_dir / "peaks.csv", peaks, mesh=mesh))
             files.append(export.write_frequencies_csv(freqs, out_dir / "frequencies.csv"))
     if npz:
         with stage("npz"):
@@ -388,7 +389,7 @@ def _cmd_run(args) -> int:
         csv=o.csv and not args.no_csv, npz=o.npz and not args.no_npz, vtk=o.vtk and not args.no_vtk,
         render=(o.render or args.render) and not args.no_render,
         modes=o.modes if args.modes is None else args.modes, scale=args.scale if args.scale else o.scale,
-        every=args.every or o.every, dofs=dofs)
+        every=args.every or o.every, dofs=dofs, mesh=mesh)
     total = time.perf_counter() - t0
     text = format_summary(res, freqs, peaks, stages=stage.times, files=files, out_dir=out_dir, source=ld.source,
                           scene_time=total, mesh=mesh)

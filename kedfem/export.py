@@ -125,19 +125,33 @@ def write_response_csv(res, path) -> Path:
 
 
 PEAK_COLUMNS = ("link", "peak_deflection [m]", "deflection_angle [rad]", "peak_stress [Pa]",
-                "stress_angle [rad]", "stress_station [m]")
+                "stress_angle [rad]", "stress_station [m]", "deflection_time_error [-]",
+                "stress_time_error [-]", "deflection_mesh_error [-]", "stress_mesh_error [-]")
 
 
-def write_peaks_csv(res, path, peaks=None) -> Path:
-    """Peak mid-span deflection and stress per flexible link (:meth:`PeriodicResult.peaks`)."""
+def write_peaks_csv(res, path, peaks=None, mesh=None) -> Path:
+    """Peak mid-span deflection and stress per flexible link (:meth:`PeriodicResult.peaks`).
+
+    With the estimated relative errors of each peak: of the time discretisation
+    (``res.error``) and of the mesh (``mesh``, a :class:`kedfem.mesh_check.MeshError`);
+    empty where not estimated.
+    """
     path = Path(path)
     peaks = res.peaks() if peaks is None else peaks
+
+    def opt(x):
+        return "" if x is None else _fmt(x)
+
     with atomic_path(path) as tmp, open(tmp, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(PEAK_COLUMNS)
         for p in peaks:
+            te = res.error.link(p.link) if res.error is not None else None
+            me = mesh.link(p.link) if mesh is not None else None
             w.writerow([p.link, _fmt(p.deflection), _fmt(p.deflection_angle), _fmt(p.stress),
-                        _fmt(p.stress_angle), _fmt(p.stress_station)])
+                        _fmt(p.stress_angle), _fmt(p.stress_station),
+                        opt(te.deflection if te else None), opt(te.stress if te else None),
+                        opt(me.deflection if me else None), opt(me.stress if me else None)])
     return path
 
 
