@@ -285,7 +285,8 @@ def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_di
             for e in mesh.links:
                 if e.deflection is not None:
                     st = f", stress {e.stress:.1e}" if e.stress is not None else ""
-                    L.append(f"    {e.link:<16s} deflection {e.deflection:.1e}{st}")
+                    crude = "  (against 1 element: crude, usually too large)" if e.coarse_elements == 1 else ""
+                    L.append(f"    {e.link:<16s} deflection {e.deflection:.1e}{st}{crude}")
         else:
             L.append("  mesh error: not estimated (--no-mesh-check, or no link has two elements)")
     else:
