@@ -2,7 +2,7 @@
 
 from .errors import (AccuracyWarning, ConvergenceWarning, InputError, InstabilityWarning, KedError,
                      KinematicsError, MobilityError, OptionalDependencyError, ResonanceError,
-                     SingularMassError)
+                     SingularMassError, UnboundedResponseError)
 from .materials import Material, Section
 from .mechanism import Mechanism
 from .kinematics import Cycle, Motion, kinematics, kinematics_at, static_motion

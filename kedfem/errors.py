@@ -40,6 +40,19 @@ class ResonanceError(KedError):
         self.condition = condition
 
 
+class UnboundedResponseError(KedError):
+    """The response grows without bound: the one-cycle transition overflows floating point.
+
+    The largest Floquet multiplier exceeds about 1e300 (a violent parametric
+    instability, buckling, negative damping, or a diverging non-linear
+    iterate). Attribute ``elements``: the time elements of the solve.
+    """
+
+    def __init__(self, message: str, elements: int | None = None):
+        super().__init__(message)
+        self.elements = elements
+
+
 class SingularMassError(KedError):
     """The mass matrix is singular or indefinite (massless or negative-mass DOFs)."""
 

@@ -38,7 +38,7 @@ from typing import Callable
 import numpy as np
 
 from . import periodic
-from .errors import ConvergenceWarning, InputError
+from .errors import ConvergenceWarning, InputError, UnboundedResponseError
 
 __all__ = ["solve", "fixed_point", "NonlinearResult", "NONLINEAR_METHODS"]
 
@@ -240,7 +240,15 @@ def fixed_point(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter
     message = ""
     for it in range(1, max_iter + 1):
         U, V = unpack(x)
-        sol, Un, Vn = G(U, V, it)
+        try:
+            sol, Un, Vn = G(U, V, it)
+        except UnboundedResponseError as exc:
+            if sol is None:   # the first solve: the response itself is unbounded
+                raise
+            history.append(math.inf)
+            message = (f"diverging: the linear solve at iteration {it} is unbounded ({exc}); the last "
+                       f"bounded iterate is kept (after {it - 1} linear solves)")
+            break
         g = pack(Un, Vn)
         f = g - x
         dU = float(np.linalg.norm(Un - U))

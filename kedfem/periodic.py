@@ -60,7 +60,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .errors import InputError, InstabilityWarning, ResonanceError, SingularMassError
+from .errors import InputError, InstabilityWarning, ResonanceError, SingularMassError, UnboundedResponseError
 from .expm import balance, exponential_integrals, second_order_transition
 
 __all__ = ["solve", "solve_cyclic", "CyclicSolution", "PeriodicSolution", "HOLDS", "METHODS", "auto_delta", "MIN_NODES"]
@@ -877,13 +877,15 @@ def solve_cyclic(elems, per_element: float, *, method: str = "auto", memory_budg
                 if open_A is None:
                     open_A, open_b = Pc, dc
                 else:
-                    open_A, open_b = Pc @ open_A, Pc @ open_b + dc
+                    with np.errstate(over="ignore", invalid="ignore"):
+                        open_A, open_b = Pc @ open_A, Pc @ open_b + dc
                 open_len += L
                 if open_len >= seg or b == n:
                     seg_A.append(open_A[None])
                     seg_b.append(open_b[None])
                     open_A, open_b, open_len = None, None, 0
-        Phi, dvec = Pc @ Phi, Pc @ dvec + dc
+        with np.errstate(over="ignore", invalid="ignore"):  # checked below
+            Phi, dvec = Pc @ Phi, Pc @ dvec + dc
         if keep:
             kept_A.append(A)
         kept_b.append(bvec)
@@ -894,6 +896,12 @@ def solve_cyclic(elems, per_element: float, *, method: str = "auto", memory_budg
 
     # ---- Floquet analysis and resonance check -------------------------------
     t0 = time.perf_counter()
+    if not (np.all(np.isfinite(Phi)) and np.all(np.isfinite(dvec))):
+        raise UnboundedResponseError(
+            f"response unbounded: the transition over one cycle ({n} time elements) overflows "
+            "floating point, so the largest Floquet multiplier exceeds about 1e300 -- a violent "
+            "parametric instability or buckling at this speed, negative damping, or a diverging "
+            "non-linear iterate; no periodic response is returned", elements=n)
     mult = np.linalg.eigvals(Phi)
     mult = mult[np.argsort(-np.abs(mult), kind="stable")]
     rho = float(np.abs(mult).max())
@@ -1002,6 +1010,21 @@ solve.__doc__ = (_solve.__doc__ or "") + """
 """
 
 
+
+def _overflow_is_checked(fn):
+    """Run ``fn`` with numpy's overflow warnings off: an overflowing product of
+    transitions means an unbounded response, which :func:`solve_cyclic` reports
+    as :class:`~kedfem.errors.UnboundedResponseError` (errstate is per thread,
+    so the products in worker threads need it too)."""
+    import functools
+
+    @functools.wraps(fn)
+    def wrapped(*args, **kwargs):
+        with np.errstate(over="ignore", invalid="ignore"):
+            return fn(*args, **kwargs)
+    return wrapped
+
+@_overflow_is_checked
 def _tree_parallel(A, b, workers):
     """``_tree_groups(A, b, len(A))`` with the parts composed in parallel worker threads.
 
@@ -1022,6 +1045,7 @@ def _tree_parallel(A, b, workers):
     return P, d
 
 
+@_overflow_is_checked
 def _tree_groups(A, b, g):
     """Compose consecutive groups of ``g`` affine maps ``z -> A_k z + b_k``.
 
@@ -1055,6 +1079,7 @@ def _tree_groups(A, b, g):
     return np.concatenate(outA), np.concatenate(outb)
 
 
+@_overflow_is_checked
 def _chain_invariant(A, bvec):
     """Transfer of a chunk of elements with constant A: (A**L, d)."""
     _, dseg = _scan_invariant(A, bvec, np.zeros(A.shape[0]))

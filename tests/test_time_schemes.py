@@ -209,3 +209,34 @@ def test_default_stability_of_the_four_bar_agrees_with_the_split_exponential(fou
     s = res.stability
     assert s.verdict == "stable" and s.scheme == "radau3"
     assert s.error is not None and abs(s.spectral_radius - ref) <= max(s.error, 1e-6), (s, ref)
+
+
+@pytest.mark.parametrize("name, n", [("radau3", 4096), ("magnus2", 48)])
+def test_unbounded_response_is_a_named_error(name, n):
+    """Negative damping c = -2000 1/s over a 1 s cycle: growth e^2000 overflows floating point.
+
+    (Radau IIA, being L-stable, turns a growth it does not resolve, lambda h >> 1, into decay:
+    the elements must resolve it. In a linkage the growth rates of parametric instabilities are
+    below the modal frequencies that the resolution floor of a solve resolves.)
+    """
+    sc = schemes.get(name)
+    ti = sc.instants(n, T)
+    with pytest.raises(kf.UnboundedResponseError, match="response unbounded"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", InstabilityWarning)
+        sc.solve(np.eye(1), np.full((1, 1), -2000.0), np.full((ti.size, 1, 1), 50.0),
+                 np.ones((ti.size, 1)), T, n)
+
+
+def test_a_diverging_iterate_keeps_the_last_bounded_one():
+    from kedfem.nonlinear import fixed_point
+    calls = []
+
+    def G(U, V, it):
+        calls.append(it)
+        if it == 2:
+            raise kf.UnboundedResponseError("response unbounded: test")
+        return "sol1", U + 1.0, V
+
+    with pytest.warns(kf.ConvergenceWarning, match="unbounded"):
+        sol, hist, converged, msg = fixed_point(G, 4, 2, T, eps=1e-9)
+    assert sol == "sol1" and not converged and calls == [1, 2] and math.isinf(hist[-1])
