@@ -225,6 +225,11 @@ class PointResult:
     peaks : tuple of LinkPeaks
     worker : str
         ``host:pid`` of the process that solved the point.
+    errors : tuple of LinkError
+        Estimated relative time-discretisation errors of each link's peaks
+        (``res.error.links``; empty if not estimated).
+    error_met : bool or None
+        The estimate met the scene's tolerance (None if not estimated).
     """
 
     index: int
@@ -239,6 +244,8 @@ class PointResult:
     fundamental: float = float("nan")
     peaks: tuple[LinkPeaks, ...] = ()
     worker: str = ""
+    errors: tuple = ()
+    error_met: bool | None = None
 
 
 def _worker_id() -> str:
@@ -269,7 +276,9 @@ def run_point(point: SweepPoint, frequencies: bool = True, pin: bool = True) -> 
         mu = np.abs(np.asarray(res.floquet_multipliers))
         return PointResult(point.index, point.params, True, "", time.perf_counter() - t0, bool(res.converged),
                            bool(res.stable), int(res.iterations), float(mu.max()) if mu.size else float("nan"),
-                           float(fund), tuple(res.peaks()), _worker_id())
+                           float(fund), tuple(res.peaks()), _worker_id(),
+                           tuple(res.error.links) if res.error is not None else (),
+                           bool(res.error.met) if res.error is not None else None)
     except KedError as e:
         msg = str(e)
     except Exception as e:  # noqa: BLE001 - one bad point must not kill the sweep
@@ -282,7 +291,8 @@ def run_point(point: SweepPoint, frequencies: bool = True, pin: bool = True) -> 
 # ---------------------------------------------------------------- tables
 #: result columns of the tidy table, after the point index and the axis columns
 TABLE_COLUMNS = ("link", "peak_deflection_m", "deflection_angle_rad", "peak_stress_Pa", "stress_angle_rad",
-                 "stress_station_m", "fundamental_Hz", "spectral_radius", "stable", "converged", "iterations",
+                 "stress_station_m", "deflection_time_error", "stress_time_error", "error_estimate_met",
+                 "fundamental_Hz", "spectral_radius", "stable", "converged", "iterations",
                  "wall_time_s", "ok", "error")
 
 
@@ -366,12 +376,16 @@ class SweepResult:
             head = (p.index,) + tuple(_cell(pv.get(k)) for k in keys)
             tail = (p.fundamental, p.spectral_radius, p.stable, p.converged, p.iterations, p.wall_time, p.ok,
                     p.error)
+            errs = {e.link: e for e in p.errors}
+            met = "" if p.error_met is None else p.error_met
             if p.peaks:
                 for lp in p.peaks:
+                    e = errs.get(lp.link)
                     rows.append(head + (lp.link, lp.deflection, lp.deflection_angle, lp.stress, lp.stress_angle,
-                                        lp.stress_station) + tail)
+                                        lp.stress_station, e.deflection if e else nan, e.stress if e else nan,
+                                        met) + tail)
             else:
-                rows.append(head + ("", nan, nan, nan, nan, nan) + tail)
+                rows.append(head + ("", nan, nan, nan, nan, nan, nan, nan, "") + tail)
         t = SweepTable(names, tuple(rows))
         self._table.append(t)
         return t

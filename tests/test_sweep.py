@@ -59,6 +59,9 @@ def test_points_match_an_independent_in_process_solve(pool_result):
     assert got.deflection == pytest.approx(ref.deflection, rel=1e-9)
     assert p.spectral_radius == pytest.approx(np.abs(res.floquet_multipliers).max(), rel=1e-9)
     assert p.fundamental == pytest.approx(res.frequencies(1).fundamental, rel=1e-9)
+    # the point carries its time-discretisation error estimate, as the result does
+    assert p.errors[0].stress == pytest.approx(res.error.link("rod").stress, rel=1e-9)
+    assert p.error_met == res.error.met
 
 
 def test_csv_and_plot(pool_result, tmp_path):
@@ -69,6 +72,7 @@ def test_csv_and_plot(pool_result, tmp_path):
     assert len(rows) == 8 and rows[0]["ok"] == "False" and rows[0]["link"] == ""
     for r, p in zip(rows[1:], pool_result.points[1:]):
         assert float(r["peak_stress_Pa"]) == p.peaks[0].stress and float(r["speed_rpm"]) == dict(p.params)["speed_rpm"]
+        assert float(r["stress_time_error"]) == p.errors[0].stress and r["error_estimate_met"] == str(p.error_met)
     png = pool_result.plot(tmp_path / "peaks.png")
     assert png.stat().st_size > 1000
 
