@@ -40,7 +40,7 @@ import scipy.sparse as sp
 
 from . import elements as el
 from .assembly import FEModel
-from .errors import InputError
+from .errors import InputError, KedError
 from .kinematics import Motion
 from .kinetostatics import JointForces, kinetostatics, link_axial_force, member_centre
 from .mechanism import Load
@@ -750,7 +750,13 @@ class Assembler:
             Linv = np.linalg.inv(Li)
             A = Linv @ Ks[lo:hi] @ np.swapaxes(Linv, -1, -2)
             A = 0.5 * (A + np.swapaxes(A, -1, -2))
-            lam, V = np.linalg.eigh(A)
+            try:
+                lam, V = np.linalg.eigh(A)
+            except np.linalg.LinAlgError:
+                raise KedError(f"{self.model.mech.name}: modal damping: the eigenproblem of M and K has "
+                               f"no solution in floating point at instants {lo}..{hi - 1} (natural "
+                               "frequencies beyond ~1e150 rad/s: check the units of density, "
+                               "stiffness and section)") from None
             om = np.sqrt(np.clip(lam, 0.0, None))
             scale = np.max(om, axis=-1, keepdims=True) if om.size else np.zeros(om.shape[:-1] + (1,))
             om = np.where(om > 1e-8 * np.maximum(scale, 1e-300), om, 0.0)

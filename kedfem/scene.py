@@ -19,6 +19,9 @@ NONLINEAR_METHODS = ("fixed-point", "relaxation", "anderson")
 #: tolerance-driven solve may reach): the cost grows linearly with it, and
 #: every shipped mechanism converges to 1e-5 far below it.
 MAX_STEPS = 20_000
+#: Cycle periods a scene accepts [s]: beyond them the time discretisation's products of
+#: stiffness and squared element length leave floating point (speeds of 6e-9 to 6e9 rad/s)
+PERIOD_RANGE = (1e-9, 1e9)
 
 #: Knobs of ``Scene(accuracy=...)``: the tolerance ``rtol`` on the peaks, the
 #: non-linear tolerance ``eps`` and the exponentials' ``delta`` (``None``:
@@ -188,6 +191,12 @@ class Scene:
                 raise InputError(f"{owner}: the drive speed of '{self.mechanism.name}' is zero: "
                                  "a periodic response needs a cycle")
             mech = self.mechanism
+        T = mech.period
+        if not (PERIOD_RANGE[0] <= T <= PERIOD_RANGE[1]):
+            raise InputError(f"{owner}: the drive's cycle lasts {T:.3g} s (speed {mech.drives[0].speed:.3g} "
+                             f"rad/s), outside [{PERIOD_RANGE[0]:g}, {PERIOD_RANGE[1]:g}] s: check the "
+                             "speed's units (rad/s in Python, rev/min in scene files); a linkage this "
+                             "slow is quasi-static (kf.static_response)")
         object.__setattr__(self, "_mech", mech)
 
     def with_accuracy(self, accuracy: str) -> "Scene":

@@ -129,6 +129,8 @@ def test_bending_moment_of_quasi_static_cantilever():
     (dict(hold="rk4"), "hold"),
     (dict(damping=0.02), "damping"),
     (dict(eps=0.0), "eps"),
+    (dict(speed=1e-300), "cycle lasts 6.28e\\+300 s"),
+    (dict(speed=1e12), r"outside \[1e-09, 1e\+09\] s"),
 ])
 def test_scene_input_errors(kwargs, match):
     with pytest.raises(kf.InputError, match=match):
@@ -239,3 +241,12 @@ def test_time_invariant_scene_takes_the_constant_matrix_path():
     # a time-varying scene keeps its samples
     mo2, _m2, asm2 = assemble_scene(kf.Scene(mechanisms.build("slider_crank", elements=2), steps=12))
     assert _constant_or_sampled(asm2.system().K).ndim == 3
+
+
+def test_absurd_density_is_a_named_error_not_a_linalg_traceback():
+    """rho = 1e-300 kg/m^3: natural frequencies beyond floating point (issue 12, item 1)."""
+    import warnings
+    m = mechanisms.build("exciter", rho=1e-300)
+    with pytest.raises(kf.KedError, match="modal damping: the eigenproblem"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)   # numpy's overflow on the way to the error
+        kf.solve(kf.Scene(m, effects=("inertia", "coupling", "springs"), damping=kf.ModalDamping(0.02)))
