@@ -288,6 +288,14 @@ class FEModel:
             phi = -1
         elif len(grounded) == 1:
             g = grounded[0]
+            closing = [j for j in shared if mech.joints[j].kind != "ground"]
+            if closing:
+                # groups are resolved breadth first from the grounded ones: a grounded group that
+                # meets an already resolved rigid group closes a loop of rigid members with the frame
+                raise InputError(f"rigid member(s) '{name}' close a loop of rigid members with the frame "
+                                 f"(through joint {g} and joint(s) {', '.join(closing)}): such a loop has "
+                                 "no elastic freedom and its rotations would be spurious DOFs; make at "
+                                 "least one link of the loop flexible")
             ref_pt = self._add_point(PointDof("fixed", g, loc=("joint", g)))
             self._rigid_joint_points[g] = ref_pt
             if mech.joints[g].welded:

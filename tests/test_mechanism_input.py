@@ -99,3 +99,27 @@ def test_unsynchronised_drives():
     m.drive("c1", speed=10.0)
     with pytest.raises(kf.InputError, match="integer multiple"):
         m.drive("c2", speed=15.0)
+
+
+def test_a_closed_loop_of_rigid_links_is_rejected_by_name():
+    """An all-rigid four-bar has no elastic freedom (issue 12, item 2): a clear error, not spurious DOFs."""
+    import math
+
+    import numpy as np
+
+    import kedfem as kf
+    m = kf.Mechanism("rigid four-bar")
+    m.ground("O2", at=(0.0, 0.0))
+    m.ground("O4", at=(0.254, 0.0))
+    m.joint("A", at=(0.108, 0.0))
+    A, O4 = np.array([0.108, 0.0]), np.array([0.254, 0.0])
+    d = O4 - A
+    L = float(np.hypot(*d))
+    x = (0.2794**2 - 0.2705**2 + L**2) / (2 * L)
+    B = A + x * d / L + math.sqrt(0.2794**2 - x**2) * np.array([-d[1], d[0]]) / L
+    m.joint("B", at=tuple(B))
+    for name, a, b in (("crank", "O2", "A"), ("coupler", "A", "B"), ("follower", "O4", "B")):
+        m.link(name, a, b, rigid=True, mass=0.1)
+    m.drive("crank", speed=20.0)
+    with pytest.raises(kf.InputError, match="close a loop of rigid members.*make at least one link"):
+        kf.FEModel(m)
