@@ -11,6 +11,8 @@ __all__ = ["Material", "Section"]
 
 
 def _positive(owner: str, name: str, value) -> float:
+    if isinstance(value, bool):
+        raise InputError(f"{owner}: {name} must be a number, got {value!r}")
     try:
         v = float(value)
     except (TypeError, ValueError):
@@ -41,7 +43,12 @@ class Material:
     def __post_init__(self):
         object.__setattr__(self, "E", _positive("Material", "E", self.E))
         object.__setattr__(self, "rho", _positive("Material", "rho", self.rho))
-        nu = float(self.nu)
+        if isinstance(self.nu, bool):
+            raise InputError(f"Material: nu must be a number, got {self.nu!r}")
+        try:
+            nu = float(self.nu)
+        except (TypeError, ValueError):
+            raise InputError(f"Material: nu must be a number, got {self.nu!r}") from None
         if not (-1.0 < nu < 0.5):
             raise InputError(f"Material: nu must lie in (-1, 0.5), got {self.nu!r}")
         object.__setattr__(self, "nu", nu)

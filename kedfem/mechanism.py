@@ -311,10 +311,11 @@ class Mechanism:
             Direction of the slider's line (normalised here).
         """
         ax = np.asarray(_vec2(f"slider '{name}'", "axis", axis))
-        nrm = float(np.hypot(*ax))
-        if nrm == 0.0:
+        big = float(np.max(np.abs(ax)))
+        if big == 0.0:
             raise InputError(f"slider '{name}': axis must be a non-zero vector")
-        ax = tuple(float(v) for v in ax / nrm)
+        ax = ax / big                      # scaled first: a subnormal axis normalises exactly
+        ax = tuple(float(v) for v in ax / float(np.hypot(*ax)))
         return self._new_joint(Joint(name, _vec2(f"slider '{name}'", "at", at), "slider", axis=ax))
 
     # -------------------------------------------------------------- components

@@ -160,6 +160,8 @@ def natural_frequencies(mechanism: Mechanism, crank_angle: float = 0.0, n_modes:
                          "solve the scene and use its frequencies at the converged state")
     if isinstance(n_modes, bool) or not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
         raise InputError(f"natural_frequencies: n_modes must be an integer >= 1, got {n_modes!r}")
+    if isinstance(crank_angle, bool) or not isinstance(crank_angle, (int, float, np.integer, np.floating)):
+        raise InputError(f"natural_frequencies: crank_angle must be a number [rad], got {crank_angle!r}")
     if not np.isfinite(crank_angle):
         raise InputError(f"natural_frequencies: crank_angle must be finite, got {crank_angle!r}")
     model = FEModel(mechanism)

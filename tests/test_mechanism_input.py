@@ -123,3 +123,24 @@ def test_a_closed_loop_of_rigid_links_is_rejected_by_name():
     m.drive("crank", speed=20.0)
     with pytest.raises(kf.InputError, match="close a loop of rigid members.*make at least one link"):
         kf.FEModel(m)
+
+
+def test_small_api_gaps_give_named_errors():
+    """Issue 12, item 8: bad values raise InputError naming the parameter, never a bare ValueError."""
+    import math
+
+    import kedfem as kf
+    import mechanisms
+    with pytest.raises(kf.InputError, match="nu must be a number"):
+        kf.Material(E=2e11, rho=7800.0, nu="x")
+    with pytest.raises(kf.InputError, match="E must be a number, got True"):
+        kf.Material(E=True, rho=7800.0)
+    with pytest.raises(kf.InputError, match="crank_angle must be a number"):
+        kf.natural_frequencies(mechanisms.build("slider_crank"), crank_angle="zero")
+    with pytest.raises(kf.InputError, match="steps must be at most"):
+        kf.Scene(mechanisms.build("slider_crank"), steps=10**7)
+    m = kf.Mechanism("s")
+    m.ground("O", at=(0.0, 0.0))
+    m.slider("B", at=(0.4, 0.0), axis=(3e-320, 4e-320))   # subnormal components
+    ax = m.joints["B"].axis
+    assert ax == pytest.approx((0.6, 0.8), rel=1e-15) and math.hypot(*ax) == pytest.approx(1.0, rel=1e-15)
