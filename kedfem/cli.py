@@ -362,6 +362,21 @@ def _check_dofs(scene, dofs) -> None:
             raise InputError(f"plot: unknown DOF label {d!r}{_suggest(d, labels)}")
 
 
+def _check_out_dir(out_dir: Path) -> None:
+    """An output folder that cannot be written is an input error before any work."""
+    import os
+    p = Path(out_dir).absolute()
+    probe = p
+    while not probe.exists():
+        if probe.parent == probe:
+            break
+        probe = probe.parent
+    if probe.exists() and not probe.is_dir():
+        raise InputError(f"--out {out_dir}: {probe} is a file, not a folder")
+    if probe.exists() and not os.access(probe, os.W_OK | os.X_OK):
+        raise InputError(f"--out {out_dir}: folder {probe} is not writable")
+
+
 def _cmd_run(args) -> int:
     t0 = time.perf_counter()
     ld = _load(args.scene, _overrides(args))
@@ -370,6 +385,7 @@ def _cmd_run(args) -> int:
     sc = ld.scene
     dofs = tuple(args.dofs.split(",")) if args.dofs else o.dofs
     _check_dofs(sc, dofs)
+    _check_out_dir(out_dir)
     how = f"{sc.steps} time elements" if sc.steps is not None else f"tolerance {sc.rtol:g}"
     print(f"kedfem {__version__}: solving {sc.name or sc.mech.name} ({sc.scheme}, {how}) ...", flush=True)
     stage = _Stage()
@@ -461,6 +477,7 @@ def _cmd_sweep(args) -> int:
     # validate the axis keys against the base scene before starting workers
     sf.parse_scene(dict(ld.data, sweep={k: list(v) for k, v in axes.items()}), source="command line")
     out_dir = Path(args.out) if args.out else ld.outputs.dir
+    _check_out_dir(out_dir)
     n = sf.grid_size(axes)
     where = args.scheduler
     print(f"kedfem {__version__}: sweep of {n} points over {', '.join(axes)} on {where} ...", flush=True)
@@ -500,6 +517,7 @@ def _cmd_export(args) -> int:
     ld = _load(args.scene, _overrides(args))
     o = ld.outputs
     out_dir = Path(args.out) if args.out else o.dir
+    _check_out_dir(out_dir)
     sc = ld.scene
     how = f"{sc.steps} time elements" if sc.steps is not None else f"tolerance {sc.rtol:g}"
     print(f"kedfem {__version__}: solving {sc.name or sc.mech.name} ({sc.scheme}, {how}) ...", flush=True)

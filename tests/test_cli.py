@@ -123,6 +123,10 @@ def test_errors_are_one_line_exit_2(tmp_path, capsys):
     rc, _, err = run(capsys, "run", "four_bar", "--steps", "12", "--dofs", "nope", "--out", str(tmp_path / "x"),
                      "--no-vtk")
     one_line_error(rc, err, "'nope'")
+    (tmp_path / "afile").write_text("x")   # an --out below a file: caught before the solve
+    rc, out, err = run(capsys, "run", "four_bar", "--out", str(tmp_path / "afile" / "sub"))
+    one_line_error(rc, err, "is a file, not a folder")
+    assert "solving" not in out
     # argparse usage errors: exit 2 with usage, no traceback
     rc, _, err = run(capsys, "run", "--steps", str(MAX_STEPS + 1))
     assert rc == 2 and "--steps" in err and "Traceback" not in err
