@@ -9,11 +9,19 @@ value as::
     e_f ~ SAFETY |q_f - q_c| / ((n_f / n_c)^p - 1)
 
 The rate is *observed* from three levels where they exist (the ratio of
-successive differences), clamped to ``[1, order]`` of the scheme, so a solve
-that is not yet in its asymptotic range is not credited with the scheme's
-nominal order; with two levels it is the scheme's conservative
-``assumed_rate``. Errors are relative: a peak's to the peak, a history's
-(the largest difference over the cycle) to the history's own peak.
+successive differences). Levels in the scheme's asymptotic range (observed
+rate at least :data:`ASYMPTOTIC_FRACTION` of the scheme's order for values
+read between element ends, e.g. 2.5 for ``radau3``, whose dense output is of
+order 4) are credited the observed rate up to that order; levels before it
+(irregular convergence: the error of a badly resolved resonance can stall or
+change sign, then drop 20-50x at the next doubling) only up to the scheme's
+conservative ``assumed_rate`` and at least 1, which over-estimates rather
+than under-estimates. A tolerance-driven solve stops only on levels in the
+asymptotic range, where the estimate is within a small factor of the truth
+(``benchmarks/error_estimate.py``: 0.35 .. 7 on the catalogue and four
+linkages outside it at the default tolerance). With two levels the rate is
+the scheme's ``assumed_rate``. Errors are relative: a peak's to the peak, a
+history's (the largest difference over the cycle) to the history's own peak.
 """
 
 from __future__ import annotations
@@ -25,13 +33,18 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["LinkError", "ErrorEstimate", "Observables", "estimate", "ASSUMED_RATE", "SAFETY"]
+__all__ = ["LinkError", "ErrorEstimate", "Observables", "estimate", "ASSUMED_RATE", "SAFETY",
+           "ASYMPTOTIC_FRACTION"]
 
-#: Factor on every estimate: two levels whose errors have opposite signs (before
-#: the asymptotic range) differ by less than the coarser one's error, which the
-#: rate alone does not see (measured on the flexible four-bar at 100 rpm:
-#: estimate / true error 0.32 without it; ``benchmarks/error_estimate.py``).
-SAFETY = 1.25
+#: Factor on every estimate: two levels whose errors have opposite signs differ
+#: by less than the coarser one's error, which the rate alone does not see
+#: (measured on the flexible four-bar at 100 rpm, 0.5 % damping: a quantity whose
+#: error did not fall from 48 to 96 elements while the others fell 10x; estimate /
+#: true error 0.26 without it; ``benchmarks/error_estimate.py``).
+SAFETY = 1.35
+#: Levels are in the asymptotic range when their observed rate reaches this
+#: fraction of the scheme's order between element ends (``Scheme.dense_order``).
+ASYMPTOTIC_FRACTION = 0.625
 #: Rate credited to a two-level estimate, per scheme: below the scheme's
 #: asymptotic rate for values read between element ends, so that a pair of
 #: solves before the asymptotic range is not under-estimated.
@@ -124,6 +137,10 @@ class ErrorEstimate:
         :meth:`kedfem.pipeline._Run.resolution`); an L-stable scheme damps the
         resonant response of modes it does not resolve alike at every coarse
         level, and two such levels can agree while both are wrong.
+    asymptotic : bool
+        The observed rate of the peaks reaches :data:`ASYMPTOTIC_FRACTION` of
+        the scheme's order: the estimate is close to the true error (else
+        it is an over-estimate).
     """
 
     links: tuple[LinkError, ...]
@@ -133,6 +150,7 @@ class ErrorEstimate:
     rtol: float | None = None
     history_rate: float = 0.0
     resolved: bool = True
+    asymptotic: bool = False
 
     @property
     def peak(self) -> float:
@@ -168,8 +186,9 @@ class ErrorEstimate:
 
     def describe(self) -> str:
         """One line: peak and history errors and how they were obtained."""
-        how = (f"observed rates {self.rate:.1f} / {self.history_rate:.1f}" if self.observed
-               else f"assumed rate {self.rate:.1f}")
+        how = (f"observed rates {self.rate:.1f} / {self.history_rate:.1f}"
+               f"{'' if self.asymptotic else ', before the asymptotic range: an over-estimate'}"
+               if self.observed else f"assumed rate {self.rate:.1f}")
         lv = "/".join(str(n) for n in self.levels)
         tol = f"; tolerance {self.rtol:.0e} {'met' if self.met else 'NOT MET'}" if self.rtol else ""
         rel = "" if self.reliable else "; UNRELIABLE: " + (
@@ -250,25 +269,33 @@ def _history_differences(fine: Observables, coarse: Observables) -> np.ndarray:
     return out
 
 
-def _rate(n, d1, d2, assumed):
-    """Credited rate: observed from three levels, clamped to ``[1, assumed]``."""
+def _rate(n, d1, d2, assumed, order):
+    """Credited rate and whether the levels are in the asymptotic range.
+
+    Observed from three levels: up to ``order`` when it reaches
+    ``ASYMPTOTIC_FRACTION * order``, else clamped to ``[1, assumed]``.
+    """
     if d1 is None:
-        return assumed
+        return assumed, False
     r = observed_rate(n, (d1, d2))
-    return min(max(r, 1.0), assumed) if math.isfinite(r) else 1.0
+    if not math.isfinite(r):
+        return 1.0, False
+    if r >= ASYMPTOTIC_FRACTION * order:
+        return min(r, order), True
+    return min(max(r, 1.0), assumed), False
 
 
 def estimate(levels: list[int], obs: list[Observables], *, assumed: float,
-             rtol: float | None = None) -> ErrorEstimate | None:
+             order: float | None = None, rtol: float | None = None) -> ErrorEstimate | None:
     """Error estimate of the finest of the last two or three levels.
 
     Peaks and histories each get a rate: observed from three levels (the
     largest relative change over all links and quantities, level to level),
-    clamped to ``[1, assumed]`` (a rate above the conservative one is not
-    credited, one below 1 means the levels are not converging yet), or
-    ``assumed`` with two levels. A peak's change is the larger of the change
-    of its value and the largest change of its history within half a fine
-    element of the peak (:func:`_peak_differences`).
+    credited up to ``order`` in the asymptotic range and otherwise clamped to
+    ``[1, assumed]`` (see the module docstring), or ``assumed`` with two
+    levels. A peak's change is the larger of the change of its value and the
+    largest change of its history within half a fine element of the peak
+    (:func:`_peak_differences`).
 
     Parameters
     ----------
@@ -277,7 +304,11 @@ def estimate(levels: list[int], obs: list[Observables], *, assumed: float,
     obs : list of Observables
         At the same output instants, one per level.
     assumed : float
-        Rate credited to a two-level estimate, and the largest credited.
+        Rate credited to a two-level estimate, and the largest credited
+        before the asymptotic range.
+    order : float, optional
+        Order of the scheme between element ends: the largest rate credited
+        (default ``assumed``).
     rtol : float, optional
 
     Returns
@@ -292,13 +323,15 @@ def estimate(levels: list[int], obs: list[Observables], *, assumed: float,
     ratio = n[-1] / n[-2]
     pk = _peak_differences(o[-1], o[-2])
     hi = _history_differences(o[-1], o[-2])
+    order = assumed if order is None else max(float(order), assumed)
     if len(o) == 3:
-        p_pk = _rate(n, float(_peak_differences(o[1], o[0]).max()), float(pk.max()), assumed)
-        p_hi = _rate(n, float(_history_differences(o[1], o[0]).max()), float(hi.max()), assumed)
+        p_pk, asym = _rate(n, float(_peak_differences(o[1], o[0]).max()), float(pk.max()), assumed, order)
+        p_hi, _ = _rate(n, float(_history_differences(o[1], o[0]).max()), float(hi.max()), assumed, order)
     else:
         p_pk = p_hi = assumed
+        asym = False
     f_pk, f_hi = (ratio ** p_pk - 1.0) / SAFETY, (ratio ** p_hi - 1.0) / SAFETY
     out = tuple(LinkError(link, float(pk[i, 0] / f_pk), float(pk[i, 1] / f_pk), float(hi[i] / f_hi))
                 for i, link in enumerate(o[-1].links))
     return ErrorEstimate(out, tuple(int(x) for x in levels[-3:]), float(p_pk), len(o) == 3, rtol,
-                         float(p_hi))
+                         float(p_hi), asymptotic=bool(asym))

@@ -40,10 +40,11 @@ import scipy.sparse as sp
 
 from . import elements as el
 from .assembly import FEModel
-from .errors import InputError, KedError
+from .errors import InputError
 from .kinematics import Motion
 from .kinetostatics import JointForces, kinetostatics, link_axial_force, member_centre
 from .mechanism import Load
+from .modal_damping import modal_damping
 
 __all__ = ["EFFECTS", "Effect", "check_effects", "Rayleigh", "ModalDamping", "Assembler",
            "slice_motion", "SystemTerms"]
@@ -211,9 +212,14 @@ class Assembler:
         rigid members in translating frames; the terms of the time
         derivatives of the frame transformations are left out. ``False``
         (default) is the inertial-frame formulation the response is solved in.
+    damping_field : kedfem.modal_damping.DampingField, optional
+        With :class:`ModalDamping`: ``C(t)`` interpolated over the cycle
+        instead of an eigenproblem per instant (built once per solve from the
+        same model and cycle).
     """
 
-    def __init__(self, model: FEModel, motion: Motion, effects=(), damping=None, frame=False):
+    def __init__(self, model: FEModel, motion: Motion, effects=(), damping=None, frame=False,
+                 damping_field=None):
         self.model = model
         self.mech = model.mech
         self.motion = motion
@@ -222,6 +228,7 @@ class Assembler:
             raise InputError(f"damping must be kf.Rayleigh, kf.ModalDamping or None, got {damping!r}")
         self.damping = damping
         self.frame = bool(frame)
+        self.damping_field = damping_field
         self.has = set(self.effects)
         self._forces: JointForces | None = None
         self._axial: np.ndarray | None = None
@@ -633,7 +640,9 @@ class Assembler:
         idx = np.asarray(idx)
         nt, N = idx.size, self.model.n_dof
         mo, groups = self._group_terms(idx)
-        tot = {k: np.zeros((nt, N, N)) for k in ("M", "C", "K", "Ks")}
+        field = self.damping_field if isinstance(self.damping, ModalDamping) else None
+        keys = ("M", "C", "K") if field is not None or self.damping is None else ("M", "C", "K", "Ks")
+        tot = {k: np.zeros((nt, N, N)) for k in keys}
         Q = np.zeros((nt, N))
         for gname, out in groups.items():
             for key in tot:
@@ -643,7 +652,9 @@ class Assembler:
                 Q += self.model.scatter_vector(gname, out["Q"])
         if "axial_stiffening" in self.has and self.model.rigid_groups:
             tot["K"] += self._rigid_geometric(mo, idx)
-        if self.damping is not None:
+        if field is not None:
+            tot["C"] += field.at(mo.t)
+        elif self.damping is not None:
             tot["C"] += self._damping(tot["M"], tot["Ks"])
         return SystemTerms(tot["M"], tot["C"], tot["K"], Q)
 
@@ -738,33 +749,7 @@ class Assembler:
         d = self.damping
         if isinstance(d, Rayleigh):
             return d.alpha * M + d.beta * Ks
-        # modal damping at every time node: C = L V diag(2 zeta omega) V^T L^T with
-        # M = L L^T and L^-1 Ks L^-T = V diag(omega^2) V^T; the small eigenproblems
-        # run on the worker threads (LAPACK releases the GIL)
-        from .periodic import _run_parallel, _split, default_workers
-        L = _cholesky(M, self.model)
-        C = np.empty_like(M)
-
-        def work(i, lo, hi):
-            Li = L[lo:hi]
-            Linv = np.linalg.inv(Li)
-            A = Linv @ Ks[lo:hi] @ np.swapaxes(Linv, -1, -2)
-            A = 0.5 * (A + np.swapaxes(A, -1, -2))
-            try:
-                lam, V = np.linalg.eigh(A)
-            except np.linalg.LinAlgError:
-                raise KedError(f"{self.model.mech.name}: modal damping: the eigenproblem of M and K has "
-                               f"no solution in floating point at instants {lo}..{hi - 1} (natural "
-                               "frequencies beyond ~1e150 rad/s: check the units of density, "
-                               "stiffness and section)") from None
-            om = np.sqrt(np.clip(lam, 0.0, None))
-            scale = np.max(om, axis=-1, keepdims=True) if om.size else np.zeros(om.shape[:-1] + (1,))
-            om = np.where(om > 1e-8 * np.maximum(scale, 1e-300), om, 0.0)
-            LV = Li @ V
-            C[lo:hi] = (LV * (2.0 * d.zeta * om)[:, None, :]) @ np.swapaxes(LV, -1, -2)
-
-        _run_parallel(work, _split(M.shape[0], default_workers(), min_part=4))
-        return C
+        return modal_damping(M, Ks, d.zeta, self.model.mech.name, self.model.dof_labels)
 
     # ----------------------------------------------------------- state terms
     def _state_map(self, gname, mo):
@@ -924,16 +909,3 @@ class Assembler:
             # Newton: F(v_i) + c_t (v - v_i) -> load -F(v_i) + c_t (q'-part of v_i)
             Qx[:, k] = (-(it.force * th) + ct * (xdq[:, k] @ n))[:, None] * n
         self._apply_state("load", gm, Cx, Qx, dC, dQ)
-
-
-def _cholesky(M, model):
-    try:
-        return np.linalg.cholesky(0.5 * (M + np.swapaxes(M, -1, -2)))
-    except np.linalg.LinAlgError:
-        d = np.diagonal(M, axis1=-2, axis2=-1)
-        bad = np.flatnonzero(np.min(d, axis=0) <= 0)
-        labels = ", ".join(model.dof_labels[i] for i in bad[:8]) or "(no zero diagonal)"
-        from .errors import SingularMassError
-        raise SingularMassError(f"{model.mech.name}: the mass matrix is singular or indefinite "
-                                f"(DOFs without mass: {labels}); give the members mass or rotary "
-                                "inertia") from None

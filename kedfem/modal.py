@@ -20,7 +20,8 @@ import scipy.sparse as sp
 
 from .assembly import FEModel
 from .effects import Assembler, check_effects
-from .errors import InputError, SingularMassError
+from .eigen import generalised_eigh
+from .errors import InputError
 from .kinematics import Motion, kinematics, kinematics_at, static_motion
 from .mechanism import Mechanism
 
@@ -83,7 +84,8 @@ def _motion_at(mechanism: Mechanism, crank_angle) -> Motion:
     return kinematics_at(mechanism, float(crank_angle))
 
 
-def eig_frequencies(M, K, n_modes: int | None = None, shapes: bool = False):
+def eig_frequencies(M, K, n_modes: int | None = None, shapes: bool = False, name: str = "",
+                    labels=None):
     """Undamped frequencies [Hz] of ``K phi = omega^2 M phi``, batched.
 
     Parameters
@@ -94,23 +96,17 @@ def eig_frequencies(M, K, n_modes: int | None = None, shapes: bool = False):
         Number of lowest modes to return.
     shapes : bool
         Also return mass-normalised mode shapes.
+    name : str
+        Mechanism name for messages.
+    labels : sequence of str, optional
+        DOF labels, to name massless DOFs in the error.
 
     Returns
     -------
     f : ndarray, shape (..., n_modes)
     phi : ndarray, shape (..., N, n_modes), only if ``shapes``.
     """
-    M = 0.5 * (M + np.swapaxes(M, -1, -2))
-    K = 0.5 * (K + np.swapaxes(K, -1, -2))
-    try:
-        L = np.linalg.cholesky(M)
-    except np.linalg.LinAlgError:
-        raise SingularMassError("the mass matrix is singular or indefinite (a DOF without mass or "
-                                "rotary inertia)") from None
-    Li = np.linalg.inv(L)
-    A = Li @ K @ np.swapaxes(Li, -1, -2)
-    A = 0.5 * (A + np.swapaxes(A, -1, -2))
-    lam, V = np.linalg.eigh(A)
+    lam, _L, Li, V = generalised_eigh(M, K, name, labels)
     # rigid-body modes: round-off of size eps * max|lambda| is zero, not a negative stiffness
     tol = 1e-10 * np.max(np.abs(lam), axis=-1, keepdims=True)
     lam = np.where(np.abs(lam) < tol, 0.0, lam)
@@ -171,12 +167,8 @@ def natural_frequencies(mechanism: Mechanism, crank_angle: float = 0.0, n_modes:
         motion = _motion_at(mechanism, crank_angle)
     asm = Assembler(model, motion, eff, damping=None, frame=True)
     terms = asm.system()
-    try:
-        out = eig_frequencies(terms.M, terms.K, n_modes, shapes=modes)
-    except SingularMassError as e:
-        d = np.min(np.diagonal(terms.M, axis1=-2, axis2=-1), axis=0)
-        bad = [model.dof_labels[i] for i in np.flatnonzero(d <= 0)[:8]]
-        raise SingularMassError(f"{mechanism.name}: {e} (DOFs: {', '.join(bad) or 'coupled'})") from None
+    out = eig_frequencies(terms.M, terms.K, n_modes, shapes=modes, name=mechanism.name,
+                          labels=model.dof_labels)
     f, phi = (out if modes else (out, None))
     if np.any(f < 0):
         warnings.warn(f"{mechanism.name}: a negative stiffness eigenvalue (buckling or instability) "

@@ -27,9 +27,10 @@ import numpy as np
 
 from . import accuracy, schemes
 from .assembly import FEModel
-from .effects import Assembler
+from .effects import Assembler, ModalDamping
 from .errors import AccuracyWarning, InputError
 from .kinematics import Cycle, kinematics
+from .modal_damping import DampingField
 from .nonlinear import fixed_point
 from .periodic import _blas_one_thread
 from .results import PeriodicResult, Sampler, Stability, Timings, stability_verdict
@@ -54,6 +55,10 @@ START_ELEMENTS = {"radau3": 12, "radau2": 16, "gauss3": 12, "gauss2": 16, "magnu
 RESOLVE_OMEGA_H = 2.0 * math.pi
 #: instants of the cycle where the modal frequency bands are sampled
 BAND_INSTANTS = 12
+#: a level with at least this many instants takes modal damping from the cycle's
+#: interpolated field (:class:`kedfem.modal_damping.DampingField`, built once, at least
+#: 64 exact samples) instead of an eigenproblem per instant
+FIELD_INSTANTS = 64
 #: a DOF is stiff for the exact split of the exponential holds when the links' axial
 #: stiffness carries at least this share of its diagonal stiffness at every instant
 AXIAL_SHARE = 0.9
@@ -208,10 +213,24 @@ class _Run:
             share = Assembler(self.model, motion, (), damping=None).axial_share()
             self.stiff = share.min(axis=0) >= AXIAL_SHARE
         self.levels: list[_Level] = []
+        self._field = None
         self._continue = None
         self._grids: dict[int, tuple] = {}
         self._obs: dict[tuple[int, int], accuracy.Observables] = {}
         self.t_setup = time.perf_counter() - self.t0
+
+    def damping_field(self) -> DampingField | None:
+        """The scene's modal damping over the cycle (built once; None for other damping)."""
+        sc = self.scene
+        if not isinstance(sc.damping, ModalDamping):
+            return None
+        if self._field is None:
+            def exact(t):
+                asm = Assembler(self.model, self.cycle.at(t), (), damping=sc.damping)
+                return asm._damping(*asm.structural())
+
+            self._field = DampingField(exact, sc.period)
+        return self._field
 
     # ---------------------------------------------------------------- levels
     def level(self, n: int, eps: float | None = None) -> _Level:
@@ -228,7 +247,8 @@ class _Run:
         ti = scheme.instants(n, period)
         motion = self.cycle.at(ti)
         tb = time.perf_counter()
-        asm = Assembler(self.model, motion, sc.effects, damping=sc.damping)
+        field = self.damping_field() if ti.size >= FIELD_INSTANTS else None
+        asm = Assembler(self.model, motion, sc.effects, damping=sc.damping, damping_field=field)
         N = self.model.n_dof
         opts = {"delta": sc.delta} if sc.delta is not None else {}
         if self.stiff is not None:
@@ -319,9 +339,9 @@ class _Run:
         sc = self.scene
         T = sc.period
         t = np.arange(BAND_INSTANTS) * (T / BAND_INSTANTS)
-        asm = Assembler(self.model, self.cycle.at(t), sc.effects, damping=sc.damping, frame=True)
+        asm = Assembler(self.model, self.cycle.at(t), sc.effects, damping=None, frame=True)
         S = asm.system()
-        f = np.sort(np.abs(eig_frequencies(S.M, S.K)), axis=1)  # (instants, modes), Hz
+        f = np.sort(np.abs(eig_frequencies(S.M, S.K, name=sc.mech.name, labels=self.model.dof_labels)), axis=1)  # (instants, modes), Hz
         lo, hi = f.min(axis=0), f.max(axis=0)
         f_kin = self._motion_band(level=1e-3 * sc.rtol)
         reach = max(f_kin, self._friction_band())
@@ -442,7 +462,7 @@ class _Run:
         obs = [self.observe(i, n_out) for i in idx]
         est = accuracy.estimate([self.levels[i].n for i in idx], obs,
                                 assumed=accuracy.ASSUMED_RATE.get(self.scheme.name, 1.0),
-                                rtol=self.scene.rtol)
+                                order=self.scheme.dense_order, rtol=self.scene.rtol)
         # the exponential holds integrate frozen data exactly (no numerical damping or aliasing)
         resolved = isinstance(self.scheme, schemes.ExponentialHold) or self.levels[idx[-2]].n >= need
         return dataclasses.replace(est, resolved=bool(resolved))
@@ -481,7 +501,8 @@ class _Run:
                 self.level(n, eps=eps_level)
                 if len(self.levels) >= 3:
                     est = self.estimate(self.output_steps(n), need)
-                    if est.met:
+                    # before the asymptotic range the estimate is loose (over): refine on
+                    if est.met and est.asymptotic:
                         break
                 if scheme.refine(n) > MAX_STEPS:
                     break

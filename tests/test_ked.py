@@ -247,6 +247,7 @@ def test_absurd_density_is_a_named_error_not_a_linalg_traceback():
     """rho = 1e-300 kg/m^3: natural frequencies beyond floating point (issue 12, item 1)."""
     import warnings
     m = mechanisms.build("exciter", rho=1e-300)
-    with pytest.raises(kf.KedError, match="modal damping: the eigenproblem"), warnings.catch_warnings():
+    with pytest.raises(kf.KedError, match="the eigenproblem of M and K has no solution"), \
+            warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)   # numpy's overflow on the way to the error
         kf.solve(kf.Scene(m, effects=("inertia", "coupling", "springs"), damping=kf.ModalDamping(0.02)))
