@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from . import elements as el
+from . import recovery
 from .assembly import FEModel
 from .errors import InputError
 from .kinematics import Motion
@@ -83,6 +85,61 @@ class Stability:
         """One line: spectral radius, its error and the verdict."""
         err = f" +- {self.error:.1e}" if self.error is not None else ""
         return f"spectral radius {self.spectral_radius:.6g}{err} -> {self.verdict}"
+
+
+log = logging.getLogger(__name__)
+
+#: stations per element where peak stresses are sought (with a parabolic vertex between them)
+PEAK_STATIONS = 8
+
+
+def _per_element(k) -> int:
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 1 <= k <= 64:
+        raise InputError(f"per_element must be an integer in 1..64, got {k!r}")
+    return int(k)
+
+
+def _on_stations(X: np.ndarray) -> np.ndarray:
+    """Element values (n, n_el, k + 1) on the link's stations (n, n_el k + 1), nodes averaged."""
+    n, ne, k1 = X.shape
+    k = k1 - 1
+    out = np.empty((n, ne * k + 1))
+    out[:, :-1] = X[:, :, :k].reshape(n, ne * k)
+    out[:, -1] = X[:, -1, k]
+    if ne > 1:
+        out[:, k:-1:k] = 0.5 * (X[:, :-1, k] + X[:, 1:, 0])
+    return out
+
+
+def _vertex(y: np.ndarray, k: int) -> tuple[float, float]:
+    """Parabolic vertex through ``y[k-1:k+2]``: (value, offset from ``k`` in samples)."""
+    if 0 < k < y.size - 1:
+        den = y[k - 1] - 2.0 * y[k] + y[k + 1]
+        if den < 0.0:
+            dlt = 0.5 * (y[k - 1] - y[k + 1]) / den
+            return float(y[k] - 0.25 * (y[k - 1] - y[k + 1]) * dlt), float(dlt)
+    return float(y[k]), 0.0
+
+
+def _grid_peak(vals: np.ndarray, t: np.ndarray) -> tuple[float, float, float | None]:
+    """Largest value of a history (n,) or (n, stations) with parabolic vertices.
+
+    Returns the value, its instant (vertex in time at the best station) and
+    its station as a fractional index (vertex along the stations at the best
+    instant; None for a scalar history).
+    """
+    if vals.ndim == 1:
+        k = int(np.argmax(vals))
+        v, dk = _vertex(vals, k)
+        return v, float(t[k] + dk * (t[1] - t[0] if t.size > 1 else 0.0)), None
+    flat = vals.max(axis=1)
+    k = int(np.argmax(flat))
+    j = int(np.argmax(vals[k]))
+    v_t, dk = _vertex(vals[:, j], k)
+    v_x, dj = _vertex(vals[k], j)
+    # the two vertices are corrections of the same sample: add them
+    return (float(vals[k, j] + (v_t - vals[k, j]) + (v_x - vals[k, j])),
+            float(t[k] + dk * (t[1] - t[0] if t.size > 1 else 0.0)), float(j + dj))
 
 
 def stability_verdict(rho: float, error: float | None, tol: float = 1e-9) -> str:
@@ -242,10 +299,14 @@ class PeriodicResult:
             gm = self._cache["beam_map"] = self.model.group_map("beam", self.motion)
         return gm
 
-    def stations(self, link: str) -> np.ndarray:
-        """Node positions (n_el + 1,) along a flexible link, from joint ``a`` [m]."""
+    def stations(self, link: str, per_element: int = 1) -> np.ndarray:
+        """Stations (n_el per_element + 1,) along a flexible link, from joint ``a`` [m].
+
+        ``per_element = 1``: the nodes; more divides every element evenly.
+        """
         lk = self._link(link)
-        return np.linspace(0.0, lk.length, lk.elements + 1)
+        k = _per_element(per_element)
+        return np.linspace(0.0, lk.length, lk.elements * k + 1)
 
     def _link(self, link):
         mech = self.model.mech
@@ -295,13 +356,8 @@ class PeriodicResult:
         return v
 
     # ------------------------------------------------------- section forces
-    def axial_force(self, link: str) -> np.ndarray:
-        """Elastic axial force per element (n, n_el) [N], tension positive.
-
-        ``EA (u2 - u1) / L_e``, plus the membrane term ``EA/(2 L_e) int v'^2``
-        when the scene includes ``geometric_nonlinearity``. Element midpoints
-        are at ``stations(link)[:-1] + L_e / 2``.
-        """
+    def _axial_fe(self, link: str) -> np.ndarray:
+        """Interpolated axial force per element (n, n_el) [N] (plus the membrane term)."""
         lk = self._link(link)
         d = self._local(link)
         Le = lk.length / lk.elements
@@ -313,26 +369,132 @@ class PeriodicResult:
             N = N + EA / (2 * Le) * np.einsum("...i,ij,...j->...", vb, G, vb)
         return N
 
-    def bending_moment(self, link: str) -> np.ndarray:
-        """Bending moment ``EI v''`` at the link's nodes (n, n_el + 1) [N m].
+    def _local_rates(self, link: str):
+        """Rotating-frame rates (n, n_el, 6) of the local element DOFs, or None.
 
-        At interior nodes the mean of the two adjacent elements' end values.
+        Spectral derivatives of the periodic history on a uniform grid over
+        the cycle (every result of :func:`kedfem.solve`); a resampled result
+        evaluates the trigonometric series of the result it was read from.
         """
+        key = ("rates", link)
+        if key in self._cache:
+            return self._cache[key]
+        source = self._cache.get("source")
+        out = None
+        if source is not None:
+            coef = source._rate_coefficients(link)
+            if coef is not None:
+                c1, c2 = coef
+                ph = self._cache.get("phase")
+                if ph is None:
+                    K = c1.shape[0]
+                    w = 2.0 * math.pi / self.scene.period
+                    ph = self._cache["phase"] = np.exp(1j * w * np.outer(self.t - source.t[0], np.arange(K)))
+                shape = (self.n,) + source._local(link).shape[1:]
+                out = ((ph @ c1).real.reshape(shape), (ph @ c2).real.reshape(shape))
+        elif self._uniform():
+            out = recovery.periodic_rates(self._local(link), self.scene.period)
+        else:
+            log.info("%s: results on instants that are not a uniform grid over the cycle: section "
+                     "forces without the distributed-load correction", link)
+        self._cache[key] = out
+        return out
+
+    def _uniform(self) -> bool:
+        """The instants are a uniform grid over the whole cycle."""
+        return self.n >= 8 and bool(np.allclose(np.diff(self.t), self.scene.period / self.n,
+                                                rtol=1e-9, atol=0.0))
+
+    def _rate_coefficients(self, link: str):
+        """Trigonometric coefficients (K, n_el 6) of the first and second rates, or None.
+
+        ``rate(t) = Re(sum_k c_k exp(i k w (t - t_0)))`` on a uniform result
+        (the Nyquist harmonic of an even grid left out, as in
+        :func:`kedfem.recovery.periodic_rates`).
+        """
+        key = ("rate_coef", link)
+        if key not in self._cache:
+            out = None
+            if self._uniform():
+                d = self._local(link)
+                n = self.n
+                F = np.fft.rfft(d.reshape(n, -1), axis=0) / n
+                k = np.arange(F.shape[0], dtype=float)
+                wt = np.full(k.size, 2.0)
+                wt[0] = 1.0
+                if n % 2 == 0:
+                    wt[-1] = 0.0
+                iw = (1j * 2.0 * math.pi / self.scene.period * k)[:, None]
+                F = F * wt[:, None]
+                out = (F * iw, F * iw * iw)
+            self._cache[key] = out
+        return self._cache[key]
+
+    def _forces(self, link: str, per_element: int):
+        """Bending moment and axial force (n, n_el, per_element + 1) by element equilibrium."""
+        key = ("forces", link, per_element)
+        if key in self._cache:
+            return self._cache[key]
         lk = self._link(link)
         d = self._local(link)
-        Le = lk.length / lk.elements
-        EI = lk.material.E * lk.section.I
-        B = el.shape_curvatures([Le], [0.0, 1.0])[0]  # (2, 6)
-        kap = np.einsum("tei,pi->tep", d, B)  # (n, n_el, 2)
-        M = np.zeros((self.n, lk.elements + 1))
-        M[:, :-1] += kap[..., 0]
-        M[:, 1:] += kap[..., 1]
-        M[:, 1:-1] *= 0.5
-        return EI * M
+        ne = lk.elements
+        Le = lk.length / ne
+        E = lk.material.E
+        xi = np.linspace(0.0, 1.0, per_element + 1)
+        N_h = self._axial_fe(link)
+        q = p = None
+        sl = self.model.link_elements(link)
+        b = self.model.beam
+        rates = None if (b.lumped[sl].any() or b.timoshenko[sl].any()) else self._local_rates(link)
+        if rates is not None:
+            eff = set(getattr(self.scene, "effects", ()))
+            mo = self.motion
+            th = mo.angle(link)
+            c, s = np.cos(th), np.sin(th)
 
-    def stress(self, link: str) -> np.ndarray:
-        """Largest absolute normal stress ``|N|/A + |M| c / I`` at the nodes (n, n_el + 1) [Pa].
+            def local(v):  # R^T v, (n, 2)
+                return np.stack([c * v[..., 0] + s * v[..., 1], -s * v[..., 0] + c * v[..., 1]], axis=-1)
 
+            g = None
+            if "gravity" in eff:
+                g = local(np.broadcast_to(np.asarray(self.model.mech.gravity, float), (self.n, 2)))
+            stiff = bool({"axial_stiffening", "geometric_nonlinearity"} & eff)
+            q, p = recovery.element_loads(
+                d, rates[0], rates[1], L=Le, rhoA=float(b.rhoA[sl][0]), s1=np.arange(ne) * Le,
+                omega=mo.angular_velocity(link), alpha=mo.angular_acceleration(link),
+                a_loc=local(mo.a[:, mo.joint_names.index(lk.a)]), g_loc=g, N=N_h if stiff else None,
+                inertia="inertia" in eff, coupling="coupling" in eff)
+        out = recovery.section_forces(d, q, p, L=Le, EA=E * lk.section.A, EI=E * lk.section.I, xi=xi,
+                                      N_h=N_h)
+        self._cache[key] = out
+        return out
+
+    def axial_force(self, link: str) -> np.ndarray:
+        """Elastic axial force at the element midpoints (n, n_el) [N], tension positive.
+
+        By element equilibrium (:mod:`kedfem.recovery`): ``EA (u2 - u1) /
+        L_e`` (plus the membrane term ``EA/(2 L_e) int v'^2`` when the scene
+        includes ``geometric_nonlinearity``) and the force of the element's
+        distributed axial load. Midpoints are at ``stations(link)[:-1] + L_e / 2``.
+        """
+        return self._forces(link, 2)[1][..., 1]
+
+    def bending_moment(self, link: str, per_element: int = 1) -> np.ndarray:
+        """Bending moment ``EI v''`` at the link's stations (n, n_el per_element + 1) [N m].
+
+        By element equilibrium (:mod:`kedfem.recovery`): the curvature of the
+        nodal displacements' interpolation plus the moment of each element's
+        distributed loads (rigid-body and elastic inertia, gravity, the
+        axial force on the deflection) with its ends clamped; at a node the
+        mean of the two elements meeting there. ``per_element`` stations per
+        element (:meth:`stations`).
+        """
+        return _on_stations(self._forces(self._link(link).name, _per_element(per_element))[0])
+
+    def stress(self, link: str, per_element: int = 1) -> np.ndarray:
+        """Largest absolute normal stress ``|N|/A + |M| c / I`` at the stations (n, n_el per_element + 1) [Pa].
+
+        ``M`` and ``N`` by element equilibrium (:meth:`bending_moment`).
         Needs the section's extreme-fibre distance ``c``.
         """
         lk = self._link(link)
@@ -340,12 +502,8 @@ class PeriodicResult:
         if sec.c is None:
             raise InputError(f"link '{link}': its section has no extreme-fibre distance c, "
                              "so the bending stress is unknown (give Section(..., c=...))")
-        N = self.axial_force(link)
-        Nn = np.zeros((self.n, lk.elements + 1))
-        Nn[:, :-1] += N
-        Nn[:, 1:] += N
-        Nn[:, 1:-1] *= 0.5
-        return np.abs(Nn) / sec.A + np.abs(self.bending_moment(link)) * sec.c / sec.I
+        M, N = self._forces(lk.name, _per_element(per_element))
+        return _on_stations(np.abs(N) / sec.A + np.abs(M) * sec.c / sec.I)
 
     def link_geometry(self, link: str) -> np.ndarray:
         """Rigid-body positions (n, n_el + 1, 2) [m] of a flexible link's nodes over the cycle."""
@@ -427,22 +585,21 @@ class PeriodicResult:
         between them (:attr:`sampler`), refined around the largest local
         maxima on an 8 times finer local grid with a parabolic vertex (within
         1e-7 of a 32 times finer one on the shipped mechanisms), so that
-        a peak between output instants is not cut off.
+        a peak between output instants is not cut off. Stresses are sought
+        on :data:`PEAK_STATIONS` stations per element with a parabolic vertex
+        between them along the link.
         """
         if "peaks" in self._cache:
             return self._cache["peaks"]
         links = self.model.mech.flexible_links
-        series = []  # (link index, kind, grid values (n,), station values or None)
+        series = []  # (link index, kind, grid values (n,) or (n, stations))
         for i, lk in enumerate(links):
             series.append((i, "deflection", np.abs(self.deflection(lk.name, 0.5, relative_to="chord"))))
             if lk.section.c is not None:
-                series.append((i, "stress", self.stress(lk.name)))
+                series.append((i, "stress", self.stress(lk.name, per_element=PEAK_STATIONS)))
         best = {}
         for si, (i, kind, vals) in enumerate(series):
-            flat = vals if vals.ndim == 1 else vals.max(axis=1)
-            k = int(np.argmax(flat))
-            j = None if vals.ndim == 1 else int(np.argmax(vals[k]))
-            best[si] = (float(flat[k]), float(self.t[k]), j)
+            best[si] = _grid_peak(vals, self.t)
         if self.sampler is not None and self.n >= 3:
             best = self._refine_peaks(links, series, best)
         out = []
@@ -452,7 +609,8 @@ class PeriodicResult:
             ang = self._angle_of
             if sv:
                 smax, st, sj = sv[0]
-                sst = float(self.stations(lk.name)[sj])
+                h = lk.length / (lk.elements * PEAK_STATIONS)
+                sst = float(min(max(sj * h, 0.0), lk.length))
                 sang = ang(st)
             else:
                 smax = sang = sst = float("nan")
@@ -487,25 +645,15 @@ class PeriodicResult:
         for si, (i, kind, vals) in enumerate(series):
             name = links[i].name
             cache[si] = (np.abs(fine.deflection(name, 0.5, relative_to="chord")) if kind == "deflection"
-                         else fine.stress(name))
+                         else fine.stress(name, per_element=PEAK_STATIONS))
         pos = 0
         out = dict(best)
         for si, tw in windows:
             vals = cache[si][pos:pos + tw.size]
             pos += tw.size
-            flat = vals if vals.ndim == 1 else vals.max(axis=1)
-            k = int(np.argmax(flat))
-            j = None if vals.ndim == 1 else int(np.argmax(vals[k]))
-            y = flat if vals.ndim == 1 else vals[:, j]
-            v, tt = float(y[k]), float(tw[k])
-            if 0 < k < y.size - 1:
-                den = y[k - 1] - 2.0 * y[k] + y[k + 1]
-                if den < 0.0:
-                    dlt = 0.5 * (y[k - 1] - y[k + 1]) / den
-                    v = float(y[k] - 0.25 * (y[k - 1] - y[k + 1]) * dlt)
-                    tt = float(tw[k] + dlt * (tw[1] - tw[0]))
+            v, tt, j = _grid_peak(vals, tw)
             if v > out[si][0]:
-                out[si] = (v, float(np.mod(tt, period)), j if j is not None else out[si][2])
+                out[si] = (v, float(np.mod(tt, period)), j)
         return out
 
     def resample(self, times=None, *, crank_angle=None) -> "PeriodicResult":
@@ -538,7 +686,7 @@ class PeriodicResult:
             raise InputError("resample: times / crank angles must be a 1-D array of finite numbers")
         motion, U, V = self.sampler.at(t)
         return dataclasses.replace(self, motion=motion, t=motion.t, crank_angle=motion.crank_angle,
-                                   U=U, V=V, _cache={})
+                                   U=U, V=V, _cache={"source": self._cache.get("source", self)})
 
     def observables(self):
         """Peaks and histories of every flexible link (what the error estimate compares).
@@ -569,8 +717,9 @@ class PeriodicResult:
             has.append(c)
             s.append(p.stress if c else 0.0)
             sa.append(nearest(p.stress_angle) if c else 0)
-            sj.append(int(np.argmin(np.abs(self.stations(lk.name) - p.stress_station))) if c else 0)
-            sh.append(self.stress(lk.name) if c else np.zeros((self.n, 0)))
+            st = self.stations(lk.name, PEAK_STATIONS)
+            sj.append(int(np.argmin(np.abs(st - p.stress_station))) if c else 0)
+            sh.append(self.stress(lk.name, per_element=PEAK_STATIONS) if c else np.zeros((self.n, 0)))
         return Observables(tuple(names), int(self.elements), np.array(d), np.array(da, dtype=int), np.array(s),
                            np.array(sa, dtype=int), np.array(sj, dtype=int), tuple(dh), tuple(sh),
                            tuple(has))
