@@ -961,34 +961,58 @@ class FEModel:
 
     # --------------------------------------------------------------- scatter
     def _operators(self, gname: str):
+        """Segment sums of a group's element entries: (gather order, segment starts, targets).
+
+        Entries ``(element, i, j)`` that land on the same global entry are
+        adjacent after the gather, so one ``np.add.reduceat`` sums them; the
+        padding column ``N`` (an element DOF with no unknown) is dropped.
+        """
         if gname in self._scatter_cache:
             return self._scatter_cache[gname]
         colarr = self._static_layout(gname)[0]
-        N1 = self.n_dof + 1
-        n_el, m = colarr.shape
-        rows = (colarr[:, :, None] * N1 + colarr[:, None, :]).reshape(-1)
-        Smat = sp.coo_matrix((np.ones(rows.size), (np.arange(rows.size), rows)),
-                             shape=(rows.size, N1 * N1)).tocsr()
-        vrows = colarr.reshape(-1)
-        Svec = sp.coo_matrix((np.ones(vrows.size), (np.arange(vrows.size), vrows)),
-                             shape=(vrows.size, N1)).tocsr()
-        self._scatter_cache[gname] = (Smat, Svec)
-        return Smat, Svec
+        N = self.n_dof
 
-    def scatter_matrix(self, gname: str, data: np.ndarray) -> np.ndarray:
-        """Scatter element matrices ``(nt, n_el, m, m)`` to dense ``(nt, N, N)``."""
-        Smat, _ = self._operators(gname)
-        nt = data.shape[0]
-        N1 = self.n_dof + 1
-        flat = np.asarray(Smat.T @ data.reshape(nt, -1).T).T
-        return flat.reshape(nt, N1, N1)[:, :-1, :-1]
+        def plan(flat_targets, keep):
+            idx = np.flatnonzero(keep)
+            tgt = flat_targets[idx]
+            order = np.argsort(tgt, kind="stable")
+            idx, tgt = idx[order], tgt[order]
+            starts = np.flatnonzero(np.r_[True, tgt[1:] != tgt[:-1]]) if tgt.size else np.zeros(0, int)
+            return idx, starts, tgt[starts]
 
-    def scatter_vector(self, gname: str, data: np.ndarray) -> np.ndarray:
-        """Scatter element vectors ``(nt, n_el, m)`` to dense ``(nt, N)``."""
-        _, Svec = self._operators(gname)
+        r, c = colarr[:, :, None], colarr[:, None, :]
+        mat = plan((r * N + c).reshape(-1), ((r < N) & (c < N)).reshape(-1))
+        vec = plan(colarr.reshape(-1), colarr.reshape(-1) < N)
+        self._scatter_cache[gname] = (mat, vec)
+        return mat, vec
+
+    @staticmethod
+    def _segment_add(plan, data2d, out2d):
+        idx, starts, targets = plan
+        if idx.size:
+            out2d[:, targets] += np.add.reduceat(data2d[:, idx], starts, axis=1)
+
+    def scatter_matrix(self, gname: str, data: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Scatter element matrices ``(nt, n_el, m, m)`` to dense ``(nt, N, N)``.
+
+        With ``out`` (nt, N, N), C-contiguous, the entries are added to it.
+        """
+        (mat, _vec) = self._operators(gname)
         nt = data.shape[0]
-        flat = np.asarray(Svec.T @ data.reshape(nt, -1).T).T
-        return flat[:, :-1]
+        N = self.n_dof
+        if out is None:
+            out = np.zeros((nt, N, N))
+        self._segment_add(mat, np.ascontiguousarray(data).reshape(nt, -1), out.reshape(nt, N * N))
+        return out
+
+    def scatter_vector(self, gname: str, data: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Scatter element vectors ``(nt, n_el, m)`` to dense ``(nt, N)`` (added to ``out`` if given)."""
+        (_mat, vec) = self._operators(gname)
+        nt = data.shape[0]
+        if out is None:
+            out = np.zeros((nt, self.n_dof))
+        self._segment_add(vec, np.ascontiguousarray(data).reshape(nt, -1), out)
+        return out
 
     def scatter_sparse(self, gname: str, data: np.ndarray) -> sp.csr_matrix:
         """Scatter element matrices of one time node ``(n_el, m, m)`` to CSR ``(N, N)``."""

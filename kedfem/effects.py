@@ -647,9 +647,9 @@ class Assembler:
         for gname, out in groups.items():
             for key in tot:
                 if key in out:
-                    tot[key] += self.model.scatter_matrix(gname, out[key])
+                    self.model.scatter_matrix(gname, out[key], out=tot[key])
             if "Q" in out:
-                Q += self.model.scatter_vector(gname, out["Q"])
+                self.model.scatter_vector(gname, out["Q"], out=Q)
         if "axial_stiffening" in self.has and self.model.rigid_groups:
             tot["K"] += self._rigid_geometric(mo, idx)
         if field is not None:
@@ -709,9 +709,9 @@ class Assembler:
             for gname in self.model.groups:
                 out = self._transform(gname, acc, mo, nt)
                 if out and "M" in out:
-                    M += self.model.scatter_matrix(gname, out["M"])
+                    self.model.scatter_matrix(gname, out["M"], out=M)
                 if out and "Ks" in out:
-                    Ks += self.model.scatter_matrix(gname, out["Ks"])
+                    self.model.scatter_matrix(gname, out["Ks"], out=Ks)
         finally:
             self.has = saved
             self._forms = None

@@ -12,7 +12,8 @@ of time: the mass and structural stiffness change only with the rigid-body
 positions, and ``C = 2 zeta M^(1/2) (M^(-1/2) K M^(-1/2))^(1/2) M^(1/2)`` is an
 analytic function of them. :class:`DampingField` therefore evaluates it
 exactly at ``m`` equally spaced instants and anywhere else by trigonometric
-interpolation, doubling ``m`` until the harmonics of the top eighth of the
+interpolation (of the upper triangle, the harmonics that matter), doubling
+``m`` until the harmonics of the top eighth of the
 sampled band (``3 m / 8 .. m / 2``) fall below :data:`FIELD_RTOL` of each
 entry's scale ``sqrt(C_ii C_jj)`` (the interpolation error is of that order;
 a relative error ``e`` of the damping matrix moves the response by at most
@@ -145,8 +146,12 @@ class DampingField:
             both[0::2], both[1::2] = C, mid
             C, m = both, 2 * m
         self.samples = m
-        self._scale_NN = scale
-        self._coef = self._real_coefficients(coef, m)
+        N = C.shape[1]
+        self._iu = np.triu_indices(N)
+        # harmonics whose every entry is below a thousandth of the acceptance level add nothing
+        sig = np.flatnonzero((np.abs(coef) / scale).reshape(coef.shape[0], -1).max(axis=1) > 1e-3 * rtol)
+        keep = int(sig.max()) + 1 if sig.size else 1
+        self._coef = self._real_coefficients(coef[:keep, self._iu[0], self._iu[1]], m)
         # belt and braces: exact matrices between the samples
         tc = (np.arange(CHECKS) + 0.37) * (self.period / CHECKS)
         self.error = float(np.max(np.abs(self._interpolate(tc) - exact(tc)) / scale))
@@ -165,22 +170,28 @@ class DampingField:
 
     @staticmethod
     def _real_coefficients(coef, m):
-        """Rows ``[a_0, a_1 .. a_K, b_1 .. b_K]`` with ``C(t) = sum a_k cos(k w t) - b_k sin(k w t)``."""
+        """Rows ``[a_0, a_1 .. a_K, b_1 .. b_K]`` with ``C(t) = sum a_k cos(k w t) - b_k sin(k w t)``.
+
+        ``coef`` (K + 1, entries): the rfft coefficients / m of the upper triangle.
+        """
         w = np.full(coef.shape[0], 2.0)
         w[0] = 1.0
-        if m % 2 == 0:
+        if m % 2 == 0 and coef.shape[0] == m // 2 + 1:
             w[-1] = 1.0
-        c = coef * w[:, None, None]
-        N = coef.shape[1]
-        return np.concatenate([c.real, c.imag[1:]], axis=0).reshape(-1, N * N)
+        c = coef * w[:, None]
+        return np.concatenate([c.real, c.imag[1:]], axis=0)
 
     def _interpolate(self, t):
         K = (self._coef.shape[0] + 1) // 2  # harmonics 0..K-1
         ph = np.multiply.outer(np.asarray(t, float) * (2.0 * math.pi / self.period), np.arange(K))
         basis = np.concatenate([np.cos(ph), -np.sin(ph[:, 1:])], axis=1)
-        N = int(round(math.sqrt(self._coef.shape[1])))
-        out = (basis @ self._coef).reshape(-1, N, N)
-        return 0.5 * (out + np.swapaxes(out, -1, -2))
+        vals = basis @ self._coef  # (k, N (N + 1) / 2)
+        i, j = self._iu
+        N = int(i.max()) + 1
+        out = np.empty((vals.shape[0], N, N))
+        out[:, i, j] = vals
+        out[:, j, i] = vals
+        return out
 
     def at(self, t) -> np.ndarray:
         """``C`` at instants ``t`` (k,) [s], shape (k, N, N) [N s/m]."""

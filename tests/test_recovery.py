@@ -98,3 +98,27 @@ def test_four_element_stresses_match_an_eight_element_mesh(name):
         peaks[ne] = {pk.link: pk.stress for pk in res.peaks()}
     for link, s in peaks[4].items():
         assert s == pytest.approx(peaks[8][link], rel=1e-3), link
+
+
+def test_modal_damping_field_matches_the_eigenproblem_at_any_instant():
+    """The interpolated C(t) of a solve against an eigenproblem per instant (kedfem/modal_damping.py)."""
+    from kedfem import pipeline
+    from kedfem.effects import Assembler
+    from kedfem.scenefile import preset
+    p = preset("four_bar")
+    sc = kf.Scene(mechanisms.build("four_bar"), effects=p.effects, damping=p.damping)
+    run = pipeline._Run(sc)
+    field = run.damping_field()
+    assert field.samples >= 64 and not field.constant
+    t = np.random.default_rng(1).random(9) * sc.period
+    asm = Assembler(run.model, run.cycle.at(t), (), damping=sc.damping)
+    exact = asm._damping(*asm.structural())
+    d = np.sqrt(np.abs(np.einsum("tii->ti", exact)).max(axis=0))
+    assert np.max(np.abs(field.at(t) - exact) / np.outer(d, d)) < 1e-9
+    # a time-invariant scene keeps its constant matrix exactly (the solvers' constant path)
+    ex = kf.Scene(mechanisms.build("exciter"), effects=("inertia", "coupling", "springs"),
+                  damping=kf.ModalDamping(0.02))
+    f2 = pipeline._Run(ex).damping_field()
+    assert f2.constant
+    C = f2.at(np.array([0.0, 0.01, 0.02]))
+    assert np.array_equal(C[0], C[1]) and np.array_equal(C[0], C[2])
