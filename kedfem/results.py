@@ -31,6 +31,40 @@ class Sampler:
 
     cycle: object
     discrete: object
+    _acc: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def acceleration(self, t) -> np.ndarray:
+        """Accelerations of the DOFs (k, N) at instants ``t`` (k,) [s] [m/s^2, rad/s^2].
+
+        The time derivative of the dense velocity: the trigonometric series of
+        the velocities on a uniform grid of :data:`ACCELERATION_SAMPLES` per cycle
+        or 16 per time element, whichever is finer (read off the grid where ``t``
+        falls on it).
+        """
+        period = self.discrete.period
+        if "grid" not in self._acc:
+            n_el = int(getattr(self.discrete, "n", 0) or 0)
+            F = 1 << int(math.ceil(math.log2(max(ACCELERATION_SAMPLES, 16 * n_el))))
+            _U, V = self.discrete.at(np.arange(F) * (period / F))
+            C = np.fft.rfft(V, axis=0) / F
+            k = np.arange(C.shape[0], dtype=float)
+            w = np.full(k.size, 2.0)
+            w[0] = 1.0
+            w[-1] = 0.0  # the Nyquist harmonic of the even grid has no derivative
+            # a(t) = Re(sum_k C_k exp(i k w t)): the derivative of the (one-sided) series of V
+            C = C * (w * 1j * (2.0 * math.pi / period) * k)[:, None]
+            half = np.where(k > 0, 0.5, 1.0)[:, None]
+            self._acc["coef"] = C
+            self._acc["F"] = F
+            self._acc["grid"] = np.fft.irfft(C * half * F, n=F, axis=0)
+        F, C = self._acc["F"], self._acc["coef"]
+        t = np.mod(np.asarray(t, dtype=float), period)
+        x = t * (F / period)
+        k = np.rint(x)
+        if np.all(np.abs(x - k) < 1e-7):
+            return self._acc["grid"][k.astype(int) % F]
+        ph = np.exp(1j * (2.0 * math.pi / period) * np.outer(t, np.arange(C.shape[0])))
+        return (ph @ C).real
 
     def at(self, t):
         """Motion and response at instants ``t`` (k,) [s] in ``[0, T)``.
@@ -89,8 +123,26 @@ class Stability:
 
 log = logging.getLogger(__name__)
 
+#: least number of samples per cycle of the dense velocity the accelerations are derived from
+ACCELERATION_SAMPLES = 2048
 #: stations per element where peak stresses are sought (with a parabolic vertex between them)
 PEAK_STATIONS = 8
+
+
+def _st(d: np.ndarray) -> np.ndarray:
+    """``S^T`` on the translations of local element DOFs (..., 6): ``(u, v) -> (v, -u)``, rotations 0."""
+    out = np.zeros_like(d)
+    out[..., 0], out[..., 1] = d[..., 1], -d[..., 0]
+    out[..., 3], out[..., 4] = d[..., 4], -d[..., 3]
+    return out
+
+
+def _translations(d: np.ndarray) -> np.ndarray:
+    """Local element DOFs (..., 6) with the rotations zeroed."""
+    out = d.copy()
+    out[..., 2] = 0.0
+    out[..., 5] = 0.0
+    return out
 
 
 def _per_element(k) -> int:
@@ -121,13 +173,18 @@ def _vertex(y: np.ndarray, k: int) -> tuple[float, float]:
     return float(y[k]), 0.0
 
 
-def _grid_peak(vals: np.ndarray, t: np.ndarray) -> tuple[float, float, float | None]:
-    """Largest value of a history (n,) or (n, stations) with parabolic vertices.
+def _grid_peak(vals: np.ndarray, t: np.ndarray, vertex: bool = True) -> tuple[float, float, float | None]:
+    """Largest value of a history (n,) or (n, stations), with parabolic vertices if ``vertex``.
 
     Returns the value, its instant (vertex in time at the best station) and
     its station as a fractional index (vertex along the stations at the best
-    instant; None for a scalar history).
+    instant; None for a scalar history). Without ``vertex`` the largest sample
+    (a lower bound that a refinement may only raise).
     """
+    if not vertex:
+        flat = vals if vals.ndim == 1 else vals.max(axis=1)
+        k = int(np.argmax(flat))
+        return float(flat[k]), float(t[k]), (None if vals.ndim == 1 else float(np.argmax(vals[k])))
     if vals.ndim == 1:
         k = int(np.argmax(vals))
         v, dk = _vertex(vals, k)
@@ -372,31 +429,55 @@ class PeriodicResult:
     def _local_rates(self, link: str):
         """Rotating-frame rates (n, n_el, 6) of the local element DOFs, or None.
 
-        Spectral derivatives of the periodic history on a uniform grid over
-        the cycle (every result of :func:`kedfem.solve`); a resampled result
-        evaluates the trigonometric series of the result it was read from.
+        From the dense velocities and accelerations of the DOFs (:meth:`Sampler.acceleration`)
+        through the constraint maps and their time derivatives: with ``x = E q + p``
+        (global components) and ``d = T(theta) x``::
+
+            x' = E q' + E' q + p',   x'' = E q'' + 2 E' q' + E'' q + p''
+            d' = T x' + w S^T d,     d'' = T x'' + 2 w S^T (T x') + a S^T d - w^2 d
+
+        (``S^T`` and ``w^2`` act on the translations). Without a sampler, spectral
+        derivatives of ``d`` on a uniform grid over the cycle, else None.
         """
         key = ("rates", link)
         if key in self._cache:
             return self._cache[key]
-        source = self._cache.get("source")
         out = None
-        if source is not None:
-            coef = source._rate_coefficients(link)
-            if coef is not None:
-                c1, c2 = coef
-                ph = self._cache.get("phase")
-                if ph is None:
-                    K = c1.shape[0]
-                    w = 2.0 * math.pi / self.scene.period
-                    ph = self._cache["phase"] = np.exp(1j * w * np.outer(self.t - source.t[0], np.arange(K)))
-                shape = (self.n,) + source._local(link).shape[1:]
-                out = ((ph @ c1).real.reshape(shape), (ph @ c2).real.reshape(shape))
+        if self.sampler is not None:
+            sl = self.model.link_elements(link)
+            gm = self._beam_map()
+            cols = gm.cols[sl]
+            pad = np.zeros((self.n, 1))
+            Q = [np.concatenate([X, pad], axis=1)[:, cols]
+                 for X in (self.U, self.V, self.sampler.acceleration(self.t))]  # (n, ne, m)
+            E = gm.E[:, sl]
+
+            def apply(A, q):
+                return (A @ q[..., None])[..., 0]
+
+            xd = apply(E, Q[1])
+            xdd = apply(E, Q[2])
+            if gm.E1 is not None:
+                E1, E2 = gm.E1[:, sl], gm.E2[:, sl]
+                xd = xd + apply(E1, Q[0])
+                xdd = xdd + 2.0 * apply(E1, Q[1]) + apply(E2, Q[0])
+            if gm.p is not None:
+                xd = xd + gm.p1[:, sl]
+                xdd = xdd + gm.p2[:, sl]
+            th = self.motion.angle(link)
+            w = self.motion.angular_velocity(link)[:, None, None]
+            a = self.motion.angular_acceleration(link)[:, None, None]
+            T = el.rotation_blocks(th)[:, None]
+            d = self._local(link)
+            Txd = (T @ xd[..., None])[..., 0]
+            dd = Txd + w * _st(d)
+            ddd = (T @ xdd[..., None])[..., 0] + 2.0 * w * _st(Txd) + a * _st(d) - w * w * _translations(d)
+            out = (dd, ddd)
         elif self._uniform():
             out = recovery.periodic_rates(self._local(link), self.scene.period)
         else:
-            log.info("%s: results on instants that are not a uniform grid over the cycle: section "
-                     "forces without the distributed-load correction", link)
+            log.info("%s: results without dense output on instants that are not a uniform grid: "
+                     "section forces without the distributed-load correction", link)
         self._cache[key] = out
         return out
 
@@ -404,31 +485,6 @@ class PeriodicResult:
         """The instants are a uniform grid over the whole cycle."""
         return self.n >= 8 and bool(np.allclose(np.diff(self.t), self.scene.period / self.n,
                                                 rtol=1e-9, atol=0.0))
-
-    def _rate_coefficients(self, link: str):
-        """Trigonometric coefficients (K, n_el 6) of the first and second rates, or None.
-
-        ``rate(t) = Re(sum_k c_k exp(i k w (t - t_0)))`` on a uniform result
-        (the Nyquist harmonic of an even grid left out, as in
-        :func:`kedfem.recovery.periodic_rates`).
-        """
-        key = ("rate_coef", link)
-        if key not in self._cache:
-            out = None
-            if self._uniform():
-                d = self._local(link)
-                n = self.n
-                F = np.fft.rfft(d.reshape(n, -1), axis=0) / n
-                k = np.arange(F.shape[0], dtype=float)
-                wt = np.full(k.size, 2.0)
-                wt[0] = 1.0
-                if n % 2 == 0:
-                    wt[-1] = 0.0
-                iw = (1j * 2.0 * math.pi / self.scene.period * k)[:, None]
-                F = F * wt[:, None]
-                out = (F * iw, F * iw * iw)
-            self._cache[key] = out
-        return self._cache[key]
 
     def _forces(self, link: str, per_element: int):
         """Bending moment and axial force (n, n_el, per_element + 1) by element equilibrium."""
@@ -597,10 +653,10 @@ class PeriodicResult:
             series.append((i, "deflection", np.abs(self.deflection(lk.name, 0.5, relative_to="chord"))))
             if lk.section.c is not None:
                 series.append((i, "stress", self.stress(lk.name, per_element=PEAK_STATIONS)))
-        best = {}
-        for si, (i, kind, vals) in enumerate(series):
-            best[si] = _grid_peak(vals, self.t)
-        if self.sampler is not None and self.n >= 3:
+        refine = self.sampler is not None and self.n >= 3
+        # the output grid's largest samples; the refinement around them raises them to the vertices
+        best = {si: _grid_peak(vals, self.t, vertex=not refine) for si, (i, kind, vals) in enumerate(series)}
+        if refine:
             best = self._refine_peaks(links, series, best)
         out = []
         for i, lk in enumerate(links):
