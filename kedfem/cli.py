@@ -285,10 +285,9 @@ def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_di
             for e in mesh.links:
                 if e.deflection is not None:
                     st = f", stress {e.stress:.1e}" if e.stress is not None else ""
-                    crude = "  (against 1 element: crude, usually too large)" if e.coarse_elements == 1 else ""
-                    L.append(f"    {e.link:<16s} deflection {e.deflection:.1e}{st}{crude}")
+                    L.append(f"    {e.link:<16s} deflection {e.deflection:.1e}{st}")
         else:
-            L.append("  mesh error: not estimated (--no-mesh-check, or no link has two elements)")
+            L.append("  mesh error: not estimated (--no-mesh-check, or the comparison mesh failed)")
     else:
         L.append("peak response: no flexible links")
     L.append("")

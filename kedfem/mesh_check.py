@@ -1,9 +1,11 @@
-"""The mesh's share of a result's error: the same scene on links with half the elements.
+"""The mesh's share of a result's error: the same scene on links with half (or twice) the elements.
 
 The error estimate of a solve (:mod:`kedfem.accuracy`) covers the time
 discretisation only. How far the peaks are from mesh convergence is a second
 question: :func:`mesh_error` solves the scene again with every flexible link
-meshed into half its elements (``e // 2``, at least one), on the result's own
+meshed into half its elements (``e // 2`` when that leaves at least two; links
+of one to three elements are meshed into ``2 e`` instead, because the
+mid-span deflection of a single cubic element is far off), on the result's own
 time elements and scheme, and extrapolates the change of every link's peak
 deflection and peak stress at the rate of the cubic beam elements' stresses,
 ``p = 2`` (a bending stress is a second derivative of a cubic deflection
@@ -31,7 +33,7 @@ from dataclasses import dataclass
 
 from .errors import InputError, KedError
 
-__all__ = ["MeshError", "LinkMeshError", "mesh_error", "coarsened", "MESH_RATE"]
+__all__ = ["MeshError", "LinkMeshError", "mesh_error", "coarsened", "comparison_mesh", "MESH_RATE"]
 
 log = logging.getLogger(__name__)
 
@@ -46,7 +48,7 @@ class LinkMeshError:
     Attributes
     ----------
     link : str
-    elements, coarse_elements : int
+    elements, comparison_elements : int
         Elements of the result's mesh and of the comparison mesh.
     deflection, stress : float or None
         Estimated relative error of the peak mid-span deflection and the peak
@@ -55,7 +57,7 @@ class LinkMeshError:
 
     link: str
     elements: int
-    coarse_elements: int
+    comparison_elements: int
     deflection: float | None
     stress: float | None
 
@@ -90,7 +92,7 @@ class MeshError:
 
     def describe(self) -> str:
         """One line: the largest estimated mesh error and how it was obtained."""
-        mesh = ", ".join(f"{e.link} {e.elements}/{e.coarse_elements}" for e in self.links)
+        mesh = ", ".join(f"{e.link} {e.elements}/{e.comparison_elements}" for e in self.links)
         return (f"peaks {self.peak:.1e} (elements per link, result/comparison: {mesh}; "
                 f"rate {self.rate:g} credited)")
 
@@ -110,29 +112,46 @@ def coarsened(mech, factor: int = 2):
     return new
 
 
+def comparison_mesh(mech, factor: int = 2):
+    """A copy of ``mech`` meshed for the mesh check: ``e // factor`` elements per flexible
+    link where that leaves at least two, ``e * factor`` otherwise.
+
+    Returns
+    -------
+    Mechanism
+        A new mechanism (``mech`` is not changed).
+    """
+    new = copy.deepcopy(mech)
+    for name, lk in list(new.links.items()):
+        if not lk.rigid:
+            e = lk.elements
+            new.links[name] = dataclasses.replace(lk, elements=e // factor if e // factor >= 2 else e * factor)
+    return new
+
+
 def mesh_error(res, factor: int = 2) -> MeshError | None:
-    """Estimate the mesh error of a result's peaks by a solve on a coarser mesh.
+    """Estimate the mesh error of a result's peaks by a solve on a coarser (or finer) mesh.
 
     Parameters
     ----------
     res : PeriodicResult
         A result of :func:`kedfem.solve`.
     factor : int
-        Elements per link of the comparison mesh: ``elements // factor``.
+        Elements per link of the comparison mesh (:func:`comparison_mesh`).
 
     Returns
     -------
     MeshError or None
-        None when no flexible link has two or more elements, or when the
-        coarse model cannot be built or solved (logged).
+        None when the mechanism has no flexible link, or when the comparison
+        model cannot be built or solved (logged).
     """
     from .pipeline import solve
     scene = res.scene
     mech = scene.mechanism
     flex = [lk for lk in mech.links.values() if not lk.rigid]
-    if not any(lk.elements >= 2 for lk in flex):
+    if not flex:
         return None
-    coarse = coarsened(mech, factor)
+    coarse = comparison_mesh(mech, factor)
     sc = dataclasses.replace(scene, mechanism=coarse, steps=int(res.elements), method=res.scheme or "auto",
                              hold=None, estimate=False)
     try:
@@ -140,7 +159,7 @@ def mesh_error(res, factor: int = 2) -> MeshError | None:
             warnings.simplefilter("ignore")
             rc = solve(sc)
     except KedError as exc:
-        log.warning("%s: no mesh error estimate (the coarse model failed: %s)", mech.name, exc)
+        log.warning("%s: no mesh error estimate (the comparison model failed: %s)", mech.name, exc)
         return None
     fine = {p.link: p for p in res.peaks()}
     out = []
@@ -150,7 +169,7 @@ def mesh_error(res, factor: int = 2) -> MeshError | None:
         if ec == e:
             out.append(LinkMeshError(p.link, e, ec, None, None))
             continue
-        div = (e / ec) ** MESH_RATE - 1.0
+        div = abs(1.0 - (e / ec) ** MESH_RATE)
 
         def rel(a, b):
             return abs(a - b) / abs(a) / div if (math.isfinite(a) and a != 0) else None
