@@ -658,6 +658,7 @@ class PeriodicResult:
         best = {si: _grid_peak(vals, self.t, vertex=not refine) for si, (i, kind, vals) in enumerate(series)}
         if refine:
             best = self._refine_peaks(links, series, best)
+            best = self._polish_stations(links, series, best)
         out = []
         for i, lk in enumerate(links):
             d = next(best[si] for si, s_ in enumerate(series) if s_[0] == i and s_[1] == "deflection")
@@ -672,6 +673,28 @@ class PeriodicResult:
                 smax = sang = sst = float("nan")
             out.append(LinkPeaks(lk.name, d[0], ang(d[1]), smax, sang, sst))
         self._cache["peaks"] = out
+        return out
+
+    def _polish_stations(self, links, series, best, sub: int = 8):
+        """At each stress peak's instant, the peak along the link on stations ``sub`` times finer.
+
+        The vertex through three of :data:`PEAK_STATIONS` stations per element
+        is within about 1e-5 of the peak; on ``sub`` times finer stations it is
+        within 1e-8.
+        """
+        idx = [si for si, (_i, kind, _v) in enumerate(series) if kind == "stress"]
+        if not idx:
+            return best
+        period = self.scene.period
+        one = self.resample(np.mod([best[si][1] for si in idx], period))
+        out = dict(best)
+        for r, si in enumerate(idx):
+            lk = links[series[si][0]]
+            vals = one.stress(lk.name, per_element=PEAK_STATIONS * sub)[r]
+            j = int(np.argmax(vals))
+            v, dj = _vertex(vals, j)
+            if v >= out[si][0]:
+                out[si] = (v, best[si][1], (j + dj) / sub)
         return out
 
     def _angle_of(self, t: float) -> float:
