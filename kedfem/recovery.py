@@ -47,11 +47,11 @@ __all__ = ["LOAD_POINTS", "fixed_end_maps", "periodic_rates", "element_loads", "
 LOAD_POINTS = np.array([0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0])
 
 
-@lru_cache(maxsize=16)
-def _maps(xi: tuple) -> tuple[np.ndarray, np.ndarray]:
-    xi_a = np.asarray(xi, dtype=float)
-    W = np.zeros((xi_a.size, LOAD_POINTS.size))
-    Wn = np.zeros_like(W)
+@lru_cache(maxsize=1)
+def _basis() -> tuple[np.ndarray, np.ndarray]:
+    """Power-series coefficients (4, 7) of the fixed-end moment and force of each Lagrange load."""
+    cm = np.zeros((LOAD_POINTS.size, 7))
+    cn = np.zeros((LOAD_POINTS.size, 7))
 
     def integral(p):
         P = p.integ()
@@ -64,13 +64,13 @@ def _maps(xi: tuple) -> tuple[np.ndarray, np.ndarray]:
         Q2 = lj.integ(2)
         a, b = np.linalg.solve([[1.0, 0.5], [0.5, 1.0 / 6.0]],
                                [-integral(Q2), -integral(Polynomial([1.0, -1.0]) * Q2)])
-        W[:, j] = (Q2 + Polynomial([a, b]))(xi_a)
+        c = (Q2 + Polynomial([a, b])).coef
+        cm[j, :c.size] = c
         # N' = -p with u = 0 at both ends: N = -int_0^x p + c, int N = 0
         Q1 = lj.integ(1)
-        Wn[:, j] = integral(Q1) - Q1(xi_a)
-    W.setflags(write=False)
-    Wn.setflags(write=False)
-    return W, Wn
+        c = (Polynomial([integral(Q1)]) - Q1).coef
+        cn[j, :c.size] = c
+    return cm, cn
 
 
 def fixed_end_maps(xi) -> tuple[np.ndarray, np.ndarray]:
@@ -90,7 +90,10 @@ def fixed_end_maps(xi) -> tuple[np.ndarray, np.ndarray]:
         ``N_q(xi) = L Wn @ p(LOAD_POINTS)`` [N] for an axial load ``p`` [N/m]
         (bar fixed at both ends; tension positive).
     """
-    return _maps(tuple(float(x) for x in np.atleast_1d(xi)))
+    x = np.atleast_1d(np.asarray(xi, dtype=float))
+    powers = x[:, None] ** np.arange(7)[None, :]
+    cm, cn = _basis()
+    return powers @ cm.T, powers @ cn.T
 
 
 def periodic_rates(X: np.ndarray, period: float) -> tuple[np.ndarray, np.ndarray]:

@@ -63,6 +63,14 @@ class Sampler:
         k = np.rint(x)
         if np.all(np.abs(x - k) < 1e-7):
             return self._acc["grid"][k.astype(int) % F]
+        M = t.size
+        if M >= 8 and np.allclose(np.diff(t), period / M, rtol=1e-9, atol=0.0):
+            # a uniform grid: the series folded onto M points, one inverse FFT
+            kk = np.arange(C.shape[0])
+            shifted = C * np.exp(1j * (2.0 * math.pi / period) * t[0] * kk)[:, None]
+            folded = np.zeros((M, C.shape[1]), dtype=complex)
+            np.add.at(folded, kk % M, shifted)
+            return (np.fft.ifft(folded, axis=0) * M).real
         ph = np.exp(1j * (2.0 * math.pi / period) * np.outer(t, np.arange(C.shape[0])))
         return (ph @ C).real
 
@@ -448,8 +456,10 @@ class PeriodicResult:
             gm = self._beam_map()
             cols = gm.cols[sl]
             pad = np.zeros((self.n, 1))
-            Q = [np.concatenate([X, pad], axis=1)[:, cols]
-                 for X in (self.U, self.V, self.sampler.acceleration(self.t))]  # (n, ne, m)
+            acc = self._cache.get("acceleration")
+            if acc is None:
+                acc = self._cache["acceleration"] = self.sampler.acceleration(self.t)
+            Q = [np.concatenate([X, pad], axis=1)[:, cols] for X in (self.U, self.V, acc)]  # (n, ne, m)
             E = gm.E[:, sl]
 
             def apply(A, q):
