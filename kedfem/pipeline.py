@@ -58,7 +58,7 @@ BAND_INSTANTS = 12
 #: a level with at least this many instants takes modal damping from the cycle's
 #: interpolated field (:class:`kedfem.modal_damping.DampingField`, built once, at least
 #: 64 exact samples) instead of an eigenproblem per instant
-FIELD_INSTANTS = 64
+FIELD_INSTANTS = 256
 #: a DOF is stiff for the exact split of the exponential holds when the links' axial
 #: stiffness carries at least this share of its diagonal stiffness at every instant
 AXIAL_SHARE = 0.9
