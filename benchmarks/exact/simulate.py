@@ -57,6 +57,7 @@ class ExactResult:
     newton_per_step: float
     ndof: int
     ncon: int
+    extrapolations: int = 0
     state: State = field(repr=False, default=None)
     model: Model = field(repr=False, default=None)
     q_cycle: np.ndarray | None = field(repr=False, default=None)
@@ -138,9 +139,49 @@ class _Readout:
         return out
 
 
+def _rre(starts, model: Model, T: float):
+    """Reduced-rank extrapolation of a sequence of cycle-start states to the periodic one.
+
+    Near the steady state the cycle map is affine, ``x_{i+1} - x* = A (x_i - x*)``,
+    and the transient lives in the few slowest modes: the combination of the
+    iterates with weights summing to one that minimises the norm of the combined
+    differences removes them. Driven body angles (``phi = w t``) drift by ``w T`` per
+    cycle and are made periodic before combining. Returns None when the weights are
+    ill-conditioned.
+    """
+    from .model import BodyAngle
+    drift = [(c.dof, c.w) for c in model.constraints if isinstance(c, BodyAngle)]
+    t_last = starts[-1].t
+
+    def qq(st):
+        q = st.q.copy()
+        for d, w in drift:
+            q[d] -= w * (st.t - t_last)
+        return q
+    qs = [qq(st) for st in starts]
+    scale_v = T / (2 * math.pi)
+    Y = np.array([np.concatenate([q, scale_v * st.v]) for q, st in zip(qs, starts)])
+    U = np.diff(Y, axis=0)
+    Gm = U @ U.T
+    Gm += np.eye(len(Gm)) * 1e-13 * np.trace(Gm)
+    try:
+        c = np.linalg.solve(Gm, np.ones(len(Gm)))
+    except np.linalg.LinAlgError:
+        return None
+    if not np.all(np.isfinite(c)) or abs(c.sum()) < 1e-300:
+        return None
+    g = c / c.sum()
+    if np.sum(np.abs(g)) > 1e3:
+        return None
+    later = starts[1:]
+    q = sum(gi * q for gi, q in zip(g, qs[1:]))
+    fields = [sum(gi * getattr(st, f) for gi, st in zip(g, later)) for f in ("v", "vd", "a", "lam")]
+    return State(t_last, q, *fields)
+
+
 def simulate(mech, *, elements_per_link=None, steps_per_cycle=720, beta=0.0, alpha=0.0, gravity=False,
              cycles_max=60, tol=1e-7, rho_inf=0.9, ngauss=5, newton_tol=1e-10, init=None,
-             cycles_min=2, keep_states=False, verbose=False) -> ExactResult:
+             cycles_min=2, keep_states=False, accelerate=True, rre_k=6, verbose=False) -> ExactResult:
     """Periodic steady state of ``mech`` with the geometrically exact ANCF model.
 
     Parameters
@@ -168,6 +209,10 @@ def simulate(mech, *, elements_per_link=None, steps_per_cycle=720, beta=0.0, alp
         interpolation of the fields).
     keep_states : bool
         Keep the last cycle's states ``q`` (n, ndof) in ``q_cycle``.
+    accelerate : bool
+        Every ``rre_k + 1`` cycle-start states, jump to their reduced-rank
+        extrapolation (only a better start: the steady state is still
+        accepted only by the change of the histories over a whole cycle).
 
     Returns
     -------
@@ -197,9 +242,9 @@ def simulate(mech, *, elements_per_link=None, steps_per_cycle=720, beta=0.0, alp
     converged = False
     Q = np.empty((n, model.ndof))
     cycle = 0
-    t_cycle0 = st.t
+    starts = [st.copy()]
+    n_extrap = 0
     for cycle in range(1, cycles_max + 1):
-        t_cycle0 = st.t
         for k in range(n):
             Q[k] = st.q
             st = integ.step(st)
@@ -214,10 +259,20 @@ def simulate(mech, *, elements_per_link=None, steps_per_cycle=720, beta=0.0, alp
                 converged = True
                 break
         prev = cur
+        starts.append(st.copy())
+        if accelerate and len(starts) >= rre_k + 1 and cycle < cycles_max - 1:
+            x = _rre(starts[-(rre_k + 1):], model, T)
+            if x is not None:
+                st = x
+                prev = None
+                n_extrap += 1
+                if verbose:
+                    print(f"  cycle {cycle}: extrapolated", flush=True)
+            starts = [st.copy()]
     wall = time.perf_counter() - t_start
     return ExactResult(
         mechanism=mech.name, elements_per_link=elements_per_link, steps_per_cycle=n, beta=beta, alpha=alpha,
         rho_inf=rho_inf, t=tau.copy(), crank_angle=th0 + info["w"] * tau, deflection=defl, tip=tip,
         axial=axial, moment=moment, wall_time=wall, cycles=cycle, changes=changes, converged=converged,
         max_constraint=integ.max_g, newton_per_step=integ.iterations / max(integ.steps, 1),
-        ndof=model.ndof, ncon=model.ncon, state=st, model=model, q_cycle=Q.copy() if keep_states else None)
+        ndof=model.ndof, ncon=model.ncon, extrapolations=n_extrap, state=st, model=model, q_cycle=Q.copy() if keep_states else None)
