@@ -55,12 +55,18 @@ _S = np.array([[0.0, -1.0], [1.0, 0.0]])
 _SHAT = np.zeros((6, 6))
 _SHAT[0:2, 0:2] = _S
 _SHAT[3:5, 3:5] = _S
+_SHAT_T = _SHAT.T.copy()
 
 
 # --------------------------------------------------------------------- damping
 @dataclass(frozen=True)
 class Rayleigh:
     """Rayleigh damping ``C = alpha M + beta K`` (K: structural stiffness).
+
+    The beam elements take ``beta k`` on their strain rates in their own
+    turning frame (objective: a rigid rotation of an element is not damped,
+    whichever link's frame its joint DOFs are expressed in); springs and drive
+    shafts on the rates of their DOFs; ``alpha M`` on the DOF rates.
 
     Parameters
     ----------
@@ -361,6 +367,15 @@ class Assembler:
         return (th, mo.omega[:, self._beam_member], mo.alpha[:, self._beam_member],
                 mo.a[:, self._beam_joint_a], el.rotation_blocks(th))
 
+    def _objective_beta(self) -> float:
+        """Rayleigh's stiffness coefficient when the beams take it on their strain rates.
+
+        In the inertial-frame formulation (not for the co-moving frequency
+        analysis, which keeps ``beta K`` on its DOFs).
+        """
+        d = self.damping
+        return float(d.beta) if isinstance(d, Rayleigh) and d.beta and not self.frame else 0.0
+
     def _beam_terms(self, mo, idx, acc: _Acc):
         b = self.model.beam
         if not b.L.size:
@@ -369,7 +384,16 @@ class Assembler:
         Tt = np.swapaxes(T, -1, -2)
         acc.add("beam", "M", Tt @ self._m_local @ T)
         acc.add("beam", "K", Tt @ self._k_local @ T)
-        acc.add("beam", "Ks", Tt @ self._k_local @ T)
+        beta = self._objective_beta()
+        if beta:
+            # stiffness-proportional damping of the elements' strain rates in their own
+            # turning frame: f = beta k (T x' + T' x), T' x = w S^T (T x) on the translations
+            # (the transport of the DOF maps follows in _transform); not of rigid rotation
+            kT = self._k_local @ T
+            acc.add("beam", "C", beta * (Tt @ kT))
+            acc.add("beam", "K", beta * w[..., None, None] * (Tt @ self._k_local @ _SHAT_T @ T))
+        else:
+            acc.add("beam", "Ks", Tt @ self._k_local @ T)
         if "coupling" in self.has:
             mt, ms = self._coupling_mats
             w4 = w[..., None, None]
