@@ -137,13 +137,16 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
 def check_effects(effects) -> tuple[str, ...]:
     """Validate effect names; return them as a tuple in registry order.
 
+    ``"all"`` (alone) stands for every effect of the registry, as on the
+    command line and in scene files.
+
     Raises
     ------
     InputError
         An unknown name (the message lists the known ones).
     """
     if isinstance(effects, str):
-        effects = (effects,)
+        effects = tuple(EFFECTS) if effects == "all" else (effects,)
     try:
         names = list(effects)
     except TypeError:

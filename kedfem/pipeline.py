@@ -55,6 +55,9 @@ START_ELEMENTS = {"radau3": 12, "radau2": 16, "gauss3": 12, "gauss2": 16, "magnu
 RESOLVE_OMEGA_H = 2.0 * math.pi
 #: instants of the cycle where the modal frequency bands are sampled
 BAND_INSTANTS = 12
+#: modes whose per-cycle decay lies within this of the least damped one's (natural logarithm)
+#: must keep their multipliers to rtol (:meth:`_Run.stability_floor`)
+STAB_MARGIN = 0.25
 #: a level with at least this many instants takes modal damping from the cycle's
 #: interpolated field (:class:`kedfem.modal_damping.DampingField`, built once, at least
 #: 64 exact samples) instead of an eigenproblem per instant
@@ -189,6 +192,19 @@ def solve(scene: Scene) -> PeriodicResult:
         return _Run(scene).run()
 
 
+def undamped(scene: Scene) -> bool:
+    """The scene dissipates no energy: no damping model (or a zero one) and no friction."""
+    from .effects import ModalDamping, Rayleigh
+    d = scene.damping
+    if isinstance(d, ModalDamping) and d.zeta > 0:
+        return False
+    if isinstance(d, Rayleigh) and (d.alpha > 0 or d.beta > 0):
+        return False
+    if "loads" in scene.effects and scene.mech.frictions:
+        return False
+    return True
+
+
 def _coarser(scheme, n: int) -> int | None:
     """The level whose refinement is ``n`` (None below the scheme's minimum)."""
     for m in range(max(scheme.min_elements, n // 2 - 1), n):
@@ -214,6 +230,8 @@ class _Run:
             self.stiff = share.min(axis=0) >= AXIAL_SHARE
         self.levels: list[_Level] = []
         self._field = None
+        self._bands = None
+        self._stab_need, self._stab_f = 0, 0.0
         self._continue = None
         self._grids: dict[int, tuple] = {}
         self._obs: dict[tuple[int, int], accuracy.Observables] = {}
@@ -343,6 +361,7 @@ class _Run:
         S = asm.system()
         f = np.sort(np.abs(eig_frequencies(S.M, S.K, name=sc.mech.name, labels=self.model.dof_labels)), axis=1)  # (instants, modes), Hz
         lo, hi = f.min(axis=0), f.max(axis=0)
+        self._bands = (lo, hi)
         f_kin = self._motion_band(level=1e-3 * sc.rtol)
         reach = max(f_kin, self._friction_band())
         excited = lo <= reach
@@ -403,6 +422,61 @@ class _Run:
                 out = max(out, float(a_c.max()) / (math.pi * fr.smoothing))
         return out
 
+    def stability_floor(self) -> tuple[int, float]:
+        """Fewest time elements whose numerical damping leaves the spectral radius within ``rtol``.
+
+        An L-stable scheme damps every mode a little per element (Radau IIA:
+        ``-ln|R(i y)| ~ y^6 / 7200`` at ``y = omega h``), so a mode with many
+        periods per cycle loses ``n (omega T / n)^6 / 7200`` of its multiplier's
+        modulus on ``n`` elements even when the response is resolved (a
+        105 Hz mode of a linkage at 300 rpm on 48 elements: a factor 5). The
+        scheme only lowers multipliers, so the spectral radius is right to
+        ``rtol`` when the modes that set it lose less than that: the modes
+        whose physical decay per cycle ``exp(-zeta omega T)`` lies within
+        :data:`STAB_MARGIN` (in its logarithm) of the least damped one, with
+        ``zeta`` from the scene's damping (modal ratio; Rayleigh ``alpha /
+        (2 omega) + beta omega / 2``). Returns the elements and the highest such
+        frequency [Hz]; ``(0, 0)`` for schemes without numerical damping and for
+        undamped scenes (whose verdict is ``marginal`` by structure).
+        """
+        from .effects import ModalDamping, Rayleigh
+        sc, scheme = self.scene, self.scheme
+        if not scheme.l_stable or self._bands is None or undamped(sc):
+            return 0, 0.0
+        lo, hi = self._bands
+        T = sc.period
+        w_lo, w_hi = 2.0 * math.pi * lo, 2.0 * math.pi * hi
+        d = sc.damping
+        if isinstance(d, ModalDamping):
+            zeta = np.full(lo.shape, float(d.zeta))
+        elif isinstance(d, Rayleigh):
+            zeta = d.alpha / (2.0 * np.maximum(w_lo, 1e-300)) + d.beta * w_lo / 2.0
+        else:
+            zeta = np.zeros(lo.shape)
+        decay = -zeta * w_lo * T  # ln of the physical multiplier modulus per cycle
+        keep = (w_lo > 0) & (decay >= decay.max() - STAB_MARGIN)
+        if not keep.any():
+            return 0, 0.0
+        theta = w_hi[keep] * T
+        tol = sc.rtol if sc.rtol is not None else 1e-3
+        tab = scheme.tableau
+
+        def loss(n):
+            y = theta / n
+            z = 1j * y[:, None, None]
+            s_ = tab.A.shape[0]
+            stage = np.linalg.solve(np.eye(s_)[None] - z * tab.A[None], np.ones((y.size, s_, 1)))[..., 0]
+            Rz = 1.0 + z[:, 0, 0] * (stage @ tab.b)
+            return float(np.max(-n * np.log(np.abs(Rz))))
+
+        lo_n, n = 1, max(scheme.min_elements, 8)
+        while loss(n) > tol and n < MAX_STEPS:
+            lo_n, n = n, 2 * n
+        while n - lo_n > 1:  # the fewest: bisection (the loss falls monotonically with n)
+            mid = (lo_n + n) // 2
+            lo_n, n = (lo_n, mid) if loss(mid) <= tol else (mid, n)
+        return n, float(hi[keep].max())
+
     # ----------------------------------------------------------- output grid
     @staticmethod
     def output_steps(n: int) -> int:
@@ -423,8 +497,17 @@ class _Run:
         if len(rho) >= 2 and error is not None:
             ratio = self.levels[-1].n / self.levels[-2].n
             err = abs(rho[-1] - rho[-2]) / (ratio ** error.rate - 1.0)
-        return Stability(rho[-1], err, stability_verdict(rho[-1], err), self.scheme.name,
-                         self.levels[-1].n)
+        verdict = stability_verdict(rho[-1], err)
+        note = ""
+        if undamped(self.scene) and verdict != "unstable":
+            verdict = "marginal"
+            note = ("undamped: the multipliers of a conservative scene lie on the unit circle unless a "
+                    "parametric resonance makes them grow; the scheme's numerical damping can hide a weak one")
+        elif self._stab_need and self.levels[-1].n < self._stab_need:
+            note = (f"{self.levels[-1].n} time elements damp the modes up to {self._stab_f:.4g} Hz numerically "
+                    f"by more than {self.scene.rtol or 1e-3:.0e} per cycle: the spectral radius is too low "
+                    f"(resolved from {self._stab_need} elements)")
+        return Stability(rho[-1], err, verdict, self.scheme.name, self.levels[-1].n, note)
 
     def result(self, lv: _Level, n_out: int, error=None, shared_cache: bool = True,
                stability: Stability | None = None) -> PeriodicResult:
@@ -473,6 +556,7 @@ class _Run:
         est = None
         need, f_res = self.resolution() if (sc.estimate or sc.steps is None) else (0, 0.0)
         need = int(math.ceil(need * scheme.per_period))
+        self._stab_need, self._stab_f = self.stability_floor()
         if sc.steps is not None:
             n = scheme.check_elements(sc.steps)
             plan = []
@@ -501,8 +585,9 @@ class _Run:
                 self.level(n, eps=eps_level)
                 if len(self.levels) >= 3:
                     est = self.estimate(self.output_steps(n), need)
-                    # before the asymptotic range the estimate is loose (over): refine on
-                    if est.met and est.asymptotic:
+                    # before the asymptotic range the estimate is loose (over): refine on; and
+                    # on until the scheme's numerical damping leaves the spectral radius right
+                    if est.met and est.asymptotic and n >= self._stab_need:
                         break
                 if scheme.refine(n) > MAX_STEPS:
                     break

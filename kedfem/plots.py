@@ -66,18 +66,23 @@ def _angle_axis(ax):
 
 
 def _cycle_deg(crank_angle):
-    """Crank angle over the cycle in 0..360 deg from the reference configuration, closed at 360 deg.
+    """The crank angle as the tables give it (absolute, in 0..360 deg), sorted, and the order.
 
-    The response is periodic, so the value at 360 deg is the one at 0 deg:
-    curves are drawn over the whole cycle with :func:`_closed`.
+    Returns ``x`` (n + 1,) increasing from the smallest angle to that angle +
+    360 deg (the response is periodic: the curve closes on its first value)
+    and the permutation ``order`` (n,) that :func:`_closed` applies to the
+    values, so that a peak sits at the angle ``peaks()`` and the CSV files
+    report whatever the reference configuration's crank angle.
     """
-    a = np.unwrap(np.asarray(crank_angle, float))
-    return np.append(_deg(np.abs(a - a[0])), 360.0)
+    a = np.mod(_deg(np.asarray(crank_angle, float)), 360.0)
+    order = np.argsort(a, kind="stable")
+    x = a[order]
+    return np.append(x, x[0] + 360.0), order
 
 
-def _closed(y):
-    """Append the first value (periodic closure at 360 deg)."""
-    y = np.asarray(y)
+def _closed(y, order):
+    """The values in the order of :func:`_cycle_deg`, closed on the first."""
+    y = np.asarray(y)[order]
     return np.concatenate([y, y[:1]], axis=0)
 
 
@@ -114,10 +119,10 @@ def displacement(res, path, dofs: Sequence[str] | None = None) -> Path:
     groups = [(u, [d for d in dofs if dof_unit(d) == u]) for u in ("m", "rad")]
     groups = [g for g in groups if g[1]]
     fig, axes = _figure(len(groups), 1, figsize=(8.0, 3.6 * len(groups)), sharex=True)
-    x = _cycle_deg(res.crank_angle)
+    x, order = _cycle_deg(res.crank_angle)
     for ax, (unit, labels) in zip(axes[:, 0], groups):
         for d in labels:
-            ax.plot(x, _closed(res.dof(d)), label=d)
+            ax.plot(x, _closed(res.dof(d), order), label=d)
         ax.set_ylabel(f"elastic {'displacement' if unit == 'm' else 'rotation'} [{unit}]")
         ax.legend(fontsize="small", loc="best")
         _angle_axis(ax)
@@ -141,13 +146,13 @@ def link_response(res, path, links: Sequence[str] | None = None) -> Path:
         if lk not in flex:
             raise InputError(f"plot: {lk!r} is not a flexible link (flexible links: {', '.join(flex)})")
     fig, axes = _figure(2, 1, figsize=(8.0, 7.0), sharex=True)
-    x = _cycle_deg(res.crank_angle)
+    x, order = _cycle_deg(res.crank_angle)
     mech = res.model.mech
     any_stress = False
     for lk in links:
-        axes[0, 0].plot(x, _closed(res.deflection(lk, 0.5, relative_to="chord")), label=lk)
+        axes[0, 0].plot(x, _closed(res.deflection(lk, 0.5, relative_to="chord"), order), label=lk)
         if mech.links[lk].section.c is not None:
-            axes[1, 0].plot(x, _closed(res.stress(lk).max(axis=1)), label=lk)
+            axes[1, 0].plot(x, _closed(res.stress(lk).max(axis=1), order), label=lk)
             any_stress = True
     axes[0, 0].set_ylabel("mid-span deflection [m]")
     axes[0, 0].set_title(f"{_title(res)}: link deflection and dynamic stress")
@@ -173,10 +178,10 @@ def frequencies(freqs, path, title: str = "") -> Path:
     """
     fig, axes = _figure()
     ax = axes[0, 0]
-    x = _cycle_deg(freqs.crank_angle)
+    x, order = _cycle_deg(freqs.crank_angle)
     for j in range(freqs.modal.shape[1]):
-        line, = ax.plot(x, _closed(freqs.modal[:, j]), label=f"mode {j + 1}, modal")
-        ax.plot(x, _closed(freqs.state_space[:, j]), "--", color=line.get_color(),
+        line, = ax.plot(x, _closed(freqs.modal[:, j], order), label=f"mode {j + 1}, modal")
+        ax.plot(x, _closed(freqs.state_space[:, j], order), "--", color=line.get_color(),
                 label=f"mode {j + 1}, state-space")
     ax.set_ylabel("natural frequency [Hz]")
     ax.set_title(f"{title + ': ' if title else ''}natural frequencies over the cycle")

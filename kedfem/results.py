@@ -115,6 +115,10 @@ class Stability:
         Time discretisation of the monodromy matrix.
     elements : int
         Its time elements.
+    note : str
+        Why the verdict needs a caveat: an undamped scene (marginal by
+        structure), or too few elements for the scheme's numerical damping of
+        the modes that set the spectral radius (empty otherwise).
     """
 
     spectral_radius: float
@@ -122,11 +126,13 @@ class Stability:
     verdict: str
     scheme: str
     elements: int
+    note: str = ""
 
     def describe(self) -> str:
-        """One line: spectral radius, its error and the verdict."""
+        """One line: spectral radius, its error and the verdict (and its caveat)."""
         err = f" +- {self.error:.1e}" if self.error is not None else ""
-        return f"spectral radius {self.spectral_radius:.6g}{err} -> {self.verdict}"
+        note = f" ({self.note})" if self.note else ""
+        return f"spectral radius {self.spectral_radius:.6g}{err} -> {self.verdict}{note}"
 
 
 log = logging.getLogger(__name__)
@@ -252,14 +258,30 @@ class Frequencies:
 
 @dataclass(frozen=True)
 class LinkPeaks:
-    """Peak values of one flexible link over the cycle."""
+    """Peak values of one flexible link over the cycle.
+
+    Attributes
+    ----------
+    link : str
+    deflection : float
+        Largest ``|mid-span deflection relative to the chord|`` over the cycle [m].
+    deflection_angle : float
+        Crank angle of that peak [rad], absolute (as :attr:`PeriodicResult.crank_angle`),
+        in ``[0, 2 pi)``.
+    stress : float
+        Largest ``|N|/A + |M| c/I`` over the link and the cycle [Pa] (nan without ``c``).
+    stress_angle : float
+        Crank angle of that peak [rad], in ``[0, 2 pi)``.
+    stress_station : float
+        Where along the link, from joint ``a`` [m].
+    """
 
     link: str
-    deflection: float            # max |mid-span deflection relative to the chord| [m]
-    deflection_angle: float      # crank angle of that peak [rad]
-    stress: float                # max |sigma| over the link and the cycle [Pa] (nan without c)
-    stress_angle: float          # [rad]
-    stress_station: float        # distance from joint a [m]
+    deflection: float
+    deflection_angle: float
+    stress: float
+    stress_angle: float
+    stress_station: float
 
 
 @dataclass(frozen=True)
@@ -709,9 +731,9 @@ class PeriodicResult:
         return out
 
     def _angle_of(self, t: float) -> float:
-        """Crank angle [rad] at instant ``t`` (linear in time for a constant-speed drive)."""
+        """Crank angle [rad] in ``[0, 2 pi)`` at instant ``t`` (linear in time for a constant-speed drive)."""
         w = self.model.mech.drives[0].speed if self.model.mech.drives else 0.0
-        return float(self.crank_angle[0] + w * (t - self.t[0]))
+        return float(np.mod(self.crank_angle[0] + w * (t - self.t[0]), 2.0 * math.pi))
 
     def _refine_peaks(self, links, series, best, candidates: int = 2, sub: int = 8):
         """Refine grid peaks on local fine grids around the largest local maxima."""
