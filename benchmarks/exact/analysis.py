@@ -27,7 +27,8 @@ EB_ROOTS = {
 }
 
 
-def beam(n_el, L=1.0, EA=1e6, EI=1.0, rhoA=1.0, bc=("clamp", "free"), angle=0.0, beta=0.0, ngauss=5) -> Model:
+def beam(n_el, L=1.0, EA=1e6, EI=1.0, rhoA=1.0, bc=("clamp", "free"), angle=0.0, beta=0.0, ngauss=5,
+         gravity=None) -> Model:
     """A straight beam from the origin along ``angle`` with end conditions ``bc`` (clamp / pin / free)."""
     b = Builder()
     e = np.array([math.cos(angle), math.sin(angle)])
@@ -39,7 +40,7 @@ def beam(n_el, L=1.0, EA=1e6, EI=1.0, rhoA=1.0, bc=("clamp", "free"), angle=0.0,
             b.fix(end)
         if kind == "clamp":
             b.slope("beam", end, angle, 0.0)
-    return b.build(beta=beta, ngauss=ngauss)
+    return b.build(beta=beta, ngauss=ngauss, gravity=gravity)
 
 
 def tangent(model: Model, q):

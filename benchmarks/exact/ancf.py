@@ -128,6 +128,13 @@ class ElementSet:
         # products of shape-function derivatives, (ne, g, 4, 4)
         self.P11 = np.einsum("egk,egl->egkl", self.N1, self.N1)
         self.P12 = np.einsum("egk,egl->egkl", self.N1, self.N2)
+        self.P1112 = np.stack([self.P11, self.P12], 2)       # (ne, g, 2, 4, 4)
+        self.N12 = np.stack([self.N1, self.N2], 1)           # (ne, 2, g, 4)
+        self.EAw = self.EA[:, None] * self.wL
+        self.EIw = self.EI[:, None] * self.wL
+        self.bEAw = self.beta[:, None] * self.EAw
+        self.bEIw = self.beta[:, None] * self.EIw
+        self.damped = bool(np.any(self.beta != 0.0))
         self.M = mass_matrix(self.L, self.rhoA, max(4, ngauss))
 
     @property
@@ -169,78 +176,90 @@ class ElementSet:
         Kronecker product of a summed 4x4 matrix with a constant 2x2 one.
         """
         ne = self.n
-        Ek = E.reshape(ne, 4, 2)
+        g = self.ngauss
         N1, N2 = self.N1, self.N2
-        a = N1 @ Ek                                            # (ne, g, 2) r'
-        b = N2 @ Ek                                            # r''
-        n2 = a[..., 0] ** 2 + a[..., 1] ** 2
+        ab = self.N12 @ E.reshape(ne, 1, 4, 2)                 # (ne, 2, g, 2): r', r''
+        a, b = ab[:, 0], ab[:, 1]
+        ax, ay, bx, by = a[..., 0], a[..., 1], b[..., 0], b[..., 1]
+        n2 = ax * ax + ay * ay
         n = np.sqrt(n2)
-        c = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+        c = ax * by - ay * bx
         inv_n = 1.0 / n
         inv_n3 = inv_n / n2
         inv_n5 = inv_n3 / n2
         eps = n - 1.0
         kap = c * inv_n3
+        # 2-vectors of the gradients: deps = N1 (x) u, Na = N1 (x) a, dc = N1 (x) pa + N2 (x) pb
         u = a * inv_n[..., None]
-        pa = np.stack([b[..., 1], -b[..., 0]], -1)             # dc/da
-        pb = np.stack([-a[..., 1], a[..., 0]], -1)             # dc/db
-        g = N1.shape[1]
-        deps = (N1[..., :, None] * u[..., None, :]).reshape(ne, g, 8)
-        Na = (N1[..., :, None] * a[..., None, :]).reshape(ne, g, 8)
-        dc = (N1[..., :, None] * pa[..., None, :] + N2[..., :, None] * pb[..., None, :]).reshape(ne, g, 8)
+        pa = np.stack([by, -bx], -1)
+        pb = np.stack([-ay, ax], -1)
+        N1e = N1[..., :, None]
+        N2e = N2[..., :, None]
+        deps = (N1e * u[..., None, :]).reshape(ne, g, 8)
+        Na = (N1e * a[..., None, :]).reshape(ne, g, 8)
+        dc = (N1e * pa[..., None, :] + N2e * pb[..., None, :]).reshape(ne, g, 8)
         dkap = dc * inv_n3[..., None] - (3.0 * c * inv_n5)[..., None] * Na
-        wL = self.wL
-        EAw = self.EA[:, None] * wL
-        EIw = self.EI[:, None] * wL
+        EAw = self.EAw
+        EIw = self.EIw
         fa = EAw * eps
         fb = EIw * kap
-        damp = Ed is not None and bool(np.any(self.beta != 0.0))
+        damp = Ed is not None and self.damped
         if damp:
-            Edk = Ed.reshape(ne, 4, 2)
-            ad = N1 @ Edk                                      # rate of r'
-            bd = N2 @ Edk
+            abd = self.N12 @ Ed.reshape(ne, 1, 4, 2)
+            ad, bd = abd[:, 0], abd[:, 1]
             Ed8 = Ed.reshape(ne, 1, 8)
             epsd = np.sum(deps * Ed8, -1)
             kapd = np.sum(dkap * Ed8, -1)
-            bt = self.beta[:, None]
-            fa = fa + bt * EAw * epsd
-            fb = fb + bt * EIw * kapd
-        Q = np.einsum("eg,egi->ei", fa, deps) + np.einsum("eg,egi->ei", fb, dkap)
+            bEA = self.bEAw
+            bEI = self.bEIw
+            fa = fa + bEA * epsd
+            fb = fb + bEI * kapd
+        V = np.stack([deps, dkap], 2)                              # (ne, g, 2, 8)
+        Q = np.einsum("egc,egci->ei", np.stack([fa, fb], -1), V)
         if not tangent:
             return Q, None, None
-
-        def gram(coef, X, Y=None):
-            Y = X if Y is None else Y
-            return np.swapaxes(X * coef[..., None], 1, 2) @ Y
-
-        def kron4(A4, B2):
-            return np.einsum("ekl,ij->ekilj", A4, B2).reshape(ne, 8, 8)
-
-        K = gram(EAw - fa * inv_n, deps) + gram(EIw, dkap)
-        X = gram(-3.0 * fb * inv_n5, dc, Na)
-        K += X + np.swapaxes(X, 1, 2)
-        K += gram(15.0 * fb * c * inv_n5 / n2, Na)
-        P11 = np.einsum("eg,egkl->ekl", fa * inv_n - 3.0 * fb * c * inv_n5, self.P11)
-        P12 = np.einsum("eg,egkl->ekl", fb * inv_n3, self.P12)
-        K += kron4(P11, _I2) + kron4(P12, _E) + kron4(np.swapaxes(P12, 1, 2), _E.T)
-        C = None
+        # K = sum_g sum_cd C_cd V_c V_d^T over the vectors (deps, dkap, dc, Na[, g_a, g_b])
         if damp:
-            C = gram(bt * EAw, deps) + gram(bt * EIw, dkap)
-            # position derivative of the strain rates: d2eps e_dot, d2kap e_dot
             ud = np.sum(u * ad, -1)
-            proj_ad = (ad - u * ud[..., None]) * inv_n[..., None]
-            g_a = (N1[..., :, None] * proj_ad[..., None, :]).reshape(ne, g, 8)
-            Eb = np.stack([bd[..., 1], -bd[..., 0]], -1)       # E b_dot
-            ETa = np.stack([-ad[..., 1], ad[..., 0]], -1)      # E^T a_dot
-            d2c_ed = (N1[..., :, None] * Eb[..., None, :] + N2[..., :, None] * ETa[..., None, :]).reshape(ne, g, 8)
-            Na_ed = (N1[..., :, None] * ad[..., None, :]).reshape(ne, g, 8)
+            g_a = (N1e * ((ad - u * ud[..., None]) * inv_n[..., None])[..., None, :]).reshape(ne, g, 8)
+            Eb = np.stack([bd[..., 1], -bd[..., 0]], -1)
+            ETa = np.stack([-ad[..., 1], ad[..., 0]], -1)
             a_ad = np.sum(a * ad, -1)
             cd = np.sum(pa * ad, -1) + np.sum(pb * bd, -1)
-            g_b = (d2c_ed * inv_n3[..., None]
+            Na_ed = (N1e * ad[..., None, :]).reshape(ne, g, 8)
+            g_b = (((N1e * Eb[..., None, :] + N2e * ETa[..., None, :]).reshape(ne, g, 8)) * inv_n3[..., None]
                    - 3.0 * inv_n5[..., None] * (dc * a_ad[..., None] + Na * cd[..., None])
                    + (15.0 * c * inv_n5 / n2 * a_ad)[..., None] * Na
                    - (3.0 * c * inv_n5)[..., None] * Na_ed)
-            K += gram(bt * EAw, deps, g_a) + gram(bt * EIw, dkap, g_b)
+        else:
+            g_a = g_b = None
+        # K = sum_g [X0 W0^T + ...]: X = (deps, dkap, dc, Na) against the weighted combinations W
+        c_aa = (EAw - fa * inv_n)[..., None]
+        c_dn = (-3.0 * fb * inv_n5)[..., None]
+        W0 = c_aa * deps
+        W1 = EIw[..., None] * dkap
+        if damp:
+            W0 = W0 + bEA[..., None] * g_a
+            W1 = W1 + bEI[..., None] * g_b
+        W2 = c_dn * Na
+        W3 = c_dn * dc + (15.0 * fb * c * inv_n5 / n2)[..., None] * Na
+        X = np.stack([deps, dkap, dc, Na], 2).reshape(ne, g * 4, 8)
+        W = np.stack([W0, W1, W2, W3], 2).reshape(ne, g * 4, 8)
+        K = np.swapaxes(X, 1, 2) @ W
+        # Kronecker parts: (sum_g coef P11) (x) I + (sum_g coef P12) (x) E + transpose
+        coef = np.stack([fa * inv_n - 3.0 * fb * c * inv_n5, fb * inv_n3], -1)    # (ne, g, 2)
+        P = np.einsum("egc,egckl->eckl", coef, self.P1112)                       # (ne, 2, 4, 4)
+        K5 = K.reshape(ne, 4, 2, 4, 2)                  # a view: [k, i, l, j]
+        K5[:, :, 0, :, 0] += P[:, 0]
+        K5[:, :, 1, :, 1] += P[:, 0]
+        D = P[:, 1] - np.swapaxes(P[:, 1], 1, 2)        # P12 (x) E + P12^T (x) E^T
+        K5[:, :, 0, :, 1] += D
+        K5[:, :, 1, :, 0] -= D
+        C = None
+        if damp:
+            V2 = V.reshape(ne, g * 2, 8)
+            Wd = (np.stack([bEA, bEI], -1)[..., None] * V).reshape(ne, g * 2, 8)
+            C = np.swapaxes(V2, 1, 2) @ Wd
         return Q, K, C
 
     def energy(self, E):
