@@ -844,13 +844,15 @@ class Assembler:
         used = False
         if "geometric_nonlinearity" in self.has and self.model.beam.L.size:
             used = True
-            self._von_karman(mo, U, dK, dQ)
+            if self._objective_beta():
+                dC = np.zeros((nt, N, N))
+            self._von_karman(mo, U, V, dK, dQ, dC)
         if "springs" in self.has and any(s.nonlinear for s in self.mech.springs.values()):
             used = True
             self._cubic_springs(mo, U, dK, dQ)
         if "loads" in self.has and any(f.follows == "total" for f in self.mech.frictions.values()):
             used = True
-            dC = np.zeros((nt, N, N))
+            dC = np.zeros((nt, N, N)) if dC is None else dC
             self._friction_total(mo, U, V, dC, dQ)
         if not used:
             return None, None, None
@@ -865,8 +867,17 @@ class Assembler:
         if Qx is not None:
             dQ += self.model.scatter_vector(gname, np.broadcast_to((Et @ Qx[..., None])[..., 0], (nt,) + (E.shape[1], E.shape[3])))
 
-    def _von_karman(self, mo, U, dK, dQ):
-        """Von Karman tangent stiffness of all flexible links (local frames)."""
+    def _von_karman(self, mo, U, V, dK, dQ, dC=None):
+        """Von Karman tangent stiffness of all flexible links (local frames).
+
+        With Rayleigh ``beta`` the axial damping acts on the rate of the
+        von Karman strain, ``beta EA eps'``, ``eps = (u2 - u1) / L + v^T G v /
+        (2 L)``: its part beyond the linear ``beta k`` is the damping
+        ``beta EA / L (b b^T - b0 b0^T)`` of the local rates (secant in the
+        iterate, exact at the fixed point). Without it the axial DOFs that
+        take up the chord shortening of a bending link would be damped as
+        if they stretched it.
+        """
         b = self.model.beam
         x, _xd, xq, gm = self.element_state("beam", mo, U)
         th = mo.theta[:, self._beam_member]
@@ -898,6 +909,26 @@ class Assembler:
         Qloc = -fnl + (Knl @ dq[..., None])[..., 0]
         Tt = np.swapaxes(T, -1, -2)
         self._apply_state("beam", gm, Tt @ Knl @ T, (Tt @ Qloc[..., None])[..., 0], dK, dQ)
+        if dC is not None:
+            self._von_karman_damping(mo, T, Tt, EAL * (bvec[..., :, None] * bvec[..., None, :]
+                                                       - np.outer(b0, b0)), gm, dC, dK, dQ)
+
+    def _von_karman_damping(self, mo, T, Tt, D, gm, dC, dK, dQ):
+        """``beta D`` (local, (nt, n_el, 6, 6)) on the objective local rates ``T x' + T' x``."""
+        D = self._objective_beta() * D
+        w = mo.omega[:, self._beam_member][..., None, None]
+        Cx = Tt @ D @ T
+        Kx = w * (Tt @ D @ _SHAT_T @ T)  # T' x = w S^T (T x) on the translations
+        Qx = None
+        if gm.p is not None:
+            Qx = -((Cx @ gm.p1[..., None])[..., 0] + (Kx @ gm.p[..., None])[..., 0])
+        self._apply_state("beam", gm, Cx, Qx, dC, dQ)
+        if "coupling" in self.has and gm.E1 is not None:
+            # x' = E q' + E1 q + p1: the transport of the maps
+            Et = np.swapaxes(gm.E, -1, -2)
+            dK += self.model.scatter_matrix("beam", np.broadcast_to(
+                Et @ Cx @ gm.E1, (dK.shape[0],) + (gm.E.shape[1], gm.E.shape[3], gm.E.shape[3])))
+        self._apply_state("beam", gm, Kx, None, dK, dQ)
 
     def _cubic_springs(self, mo, U, dK, dQ):
         g = self.model.groups["spring"]
