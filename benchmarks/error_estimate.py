@@ -43,6 +43,7 @@ import kedfem as kf  # noqa: E402
 import linkages  # noqa: E402
 import mechanisms  # noqa: E402
 from kedfem.defaults import MOULD_EFFECTS  # noqa: E402
+from kedfem.scenefile import preset  # noqa: E402
 
 LINEAR = ("inertia", "coupling", "axial_stiffening")
 RPM = 2 * math.pi / 60
@@ -53,13 +54,14 @@ def cases(quick: bool):
     z2 = kf.ModalDamping(0.02)
     out = {
         "slider_crank": (mechanisms.build("slider_crank"), dict(effects=LINEAR, damping=z2)),
-        "four_bar": (mechanisms.build("four_bar"), dict(effects=LINEAR, damping=z2)),
+        "four_bar": (mechanisms.build("four_bar"), dict(effects=preset("four_bar").effects, damping=z2)),
         "crank_rocker*": (linkages.crank_rocker(), dict(effects=LINEAR, damping=z2)),
     }
     if quick:
         return out
     out.update({
-        "six_bar": (mechanisms.build("six_bar"), dict(effects=LINEAR, damping=z2)),
+        "six_bar": (mechanisms.build("six_bar"), dict(effects=preset("six_bar").effects, damping=z2)),
+        "four_bar, linear effects": (mechanisms.build("four_bar"), dict(effects=LINEAR, damping=z2)),
         "mould_oscillator": (mechanisms.build("mould_oscillator"),
                              dict(effects=MOULD_EFFECTS, damping=z2, eps=1e-8)),
         "exciter": (mechanisms.build("exciter"), dict(effects=("inertia", "coupling", "springs"), damping=z2)),
