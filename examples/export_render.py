@@ -1,9 +1,9 @@
 """Export the deformed mechanism over the cycle for ParaView and render a PNG off-screen.
 
-Writes ``response.pvd`` (one ``.vtu`` per time node: links as polylines of their FE
+Writes ``response/response.pvd`` (one ``.vtu`` per time node: links as polylines of their FE
 nodes, point data ``displacement``, cell data ``axial_force``/``bending_moment``/``stress``),
-``modes.pvd`` (mode shapes) and ``deformed.png`` (pyvista, no display needed).
-Run: ``python examples/export_render.py`` then open ``export-out/response.pvd`` in ParaView.
+``modes/modes.pvd`` (mode shapes) and ``deformed.png`` (pyvista, no display needed).
+Run: ``python examples/export_render.py`` then open ``export-out/response/response.pvd`` in ParaView.
 """
 
 from pathlib import Path

@@ -34,6 +34,7 @@ from pathlib import Path
 
 from . import __version__
 from .errors import InputError, KedError
+from .outdir import MANIFEST, check_replaceable
 
 __all__ = ["main", "build_parser"]
 
@@ -385,6 +386,7 @@ def _cmd_run(args) -> int:
     dofs = tuple(args.dofs.split(",")) if args.dofs else o.dofs
     _check_dofs(sc, dofs)
     _check_out_dir(out_dir)
+    check_replaceable(out_dir)
     how = f"{sc.steps} time elements" if sc.steps is not None else f"tolerance {sc.rtol:g}"
     print(f"kedfem {__version__}: solving {sc.name or sc.mech.name} ({sc.scheme}, {how}) ...", flush=True)
     stage = _Stage()
@@ -400,20 +402,26 @@ def _cmd_run(args) -> int:
         from .mesh_check import mesh_error
         with stage("mesh check"):
             mesh = mesh_error(res)
-    files = _write_outputs(
-        res, freqs, peaks, out_dir, stage, plots=o.plots and not args.no_plots,
-        csv=o.csv and not args.no_csv, npz=o.npz and not args.no_npz, vtk=o.vtk and not args.no_vtk,
-        render=(o.render or args.render) and not args.no_render,
-        modes=o.modes if args.modes is None else args.modes, scale=args.scale if args.scale else o.scale,
-        every=args.every or o.every, dofs=dofs, mesh=mesh)
-    total = time.perf_counter() - t0
-    text = format_summary(res, freqs, peaks, stages=stage.times, files=files, out_dir=out_dir, source=ld.source,
-                          scene_time=total, mesh=mesh)
-    if files:
-        from .export import atomic_path
-        with atomic_path(out_dir / "summary.txt") as tmp:
-            tmp.write_text(text + "\n")
-        text += "\n  summary.txt"
+    want = dict(plots=o.plots and not args.no_plots, csv=o.csv and not args.no_csv,
+                npz=o.npz and not args.no_npz, vtk=o.vtk and not args.no_vtk,
+                render=(o.render or args.render) and not args.no_render)
+    files: list[Path] = []
+    text = ""
+    if any(want.values()):
+        from .outdir import RunFolder
+        with RunFolder(out_dir, "run", dict(scene=ld.source)) as rf:
+            staged = _write_outputs(
+                res, freqs, peaks, rf.path, stage, **want,
+                modes=o.modes if args.modes is None else args.modes, scale=args.scale if args.scale else o.scale,
+                every=args.every or o.every, dofs=dofs, mesh=mesh)
+            files = [out_dir / Path(f).relative_to(rf.path) for f in staged]
+            text = format_summary(res, freqs, peaks, stages=stage.times, files=files, out_dir=out_dir,
+                                  source=ld.source, scene_time=time.perf_counter() - t0, mesh=mesh)
+            text += f"\n  summary.txt\n  {MANIFEST} (run {rf.run_id})"
+            (rf.path / "summary.txt").write_text(text + "\n")
+    else:
+        text = format_summary(res, freqs, peaks, stages=stage.times, files=files, out_dir=out_dir,
+                              source=ld.source, scene_time=time.perf_counter() - t0, mesh=mesh)
     print()
     print(text)
     if args.strict and not (res.converged and res.stable and (res.error is None or res.error.met)):
@@ -477,16 +485,37 @@ def _cmd_sweep(args) -> int:
     sf.parse_scene(dict(ld.data, sweep={k: list(v) for k, v in axes.items()}), source="command line")
     out_dir = Path(args.out) if args.out else ld.outputs.dir
     _check_out_dir(out_dir)
-    n = sf.grid_size(axes)
+    check_replaceable(out_dir)
+    from .outdir import RunFolder
+    from .sweep_journal import SweepJournal, sweep_signature
+    points = sw.make_points(ld.data, axes)
+    journal = SweepJournal(out_dir.with_name(out_dir.name + ".partial.csv"), sweep_signature(ld.data, axes),
+                           list(axes))
+    done = {}
+    if args.resume:
+        done = journal.read(points)
+        done = {i: r for i, r in done.items() if r.ok}
+        print(f"resuming from {journal.path}: {len(done)} of {len(points)} points done", flush=True)
+    n = len(points) - len(done)
     where = args.scheduler
-    print(f"kedfem {__version__}: sweep of {n} points over {', '.join(axes)} on {where} ...", flush=True)
-    with _report_warnings():
-        res = sw.run_sweep(ld.data, axes, scheduler=args.scheduler, max_workers=args.workers,
-                           progress=False if args.no_progress else None, frequencies=not args.no_frequencies)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    files = [res.to_csv(out_dir / "sweep.csv")]
-    if not args.no_plots and len(res.failed) < len(res.points):
-        files.append(res.plot(out_dir / "sweep_peaks.png", x=args.x))
+    print(f"kedfem {__version__}: sweep of {n} points over {', '.join(axes)} on {where} (partial table: "
+          f"{journal.path}) ...", flush=True)
+    journal.start(done)
+    try:
+        with _report_warnings():
+            res = sw.run_sweep(ld.data, points=points, scheduler=args.scheduler, max_workers=args.workers,
+                               progress=False if args.no_progress else None,
+                               frequencies=not args.no_frequencies, done=done, on_result=journal.append)
+    finally:
+        journal.close()
+    res = dataclasses.replace(res, axes=tuple(sw._normalize_axes(axes).items()))
+    with RunFolder(out_dir, "sweep", dict(scene=ld.source, points=len(points),
+                                          failed=len(res.failed))) as rf:
+        staged = [res.to_csv(rf.path / "sweep.csv")]
+        if not args.no_plots and len(res.failed) < len(res.points):
+            staged.append(res.plot(rf.path / "sweep_peaks.png", x=args.x))
+        files = [out_dir / Path(f).relative_to(rf.path) for f in staged]
+    journal.close(remove=True)
     keys = list(axes)
     print()
     head = "  ".join(f"{k:>14s}" for k in keys)
@@ -507,40 +536,48 @@ def _cmd_sweep(args) -> int:
     print(f"files in {out_dir}/")
     for f in files:
         print(f"  {_rel(f, out_dir)}")
+    print(f"  {MANIFEST} (run {rf.run_id})")
     return 1 if res.failed else 0
 
 
 # ---------------------------------------------------------------- export
 def _cmd_export(args) -> int:
     from . import export
+    from .outdir import RunFolder
     ld = _load(args.scene, _overrides(args))
     o = ld.outputs
     out_dir = Path(args.out) if args.out else o.dir
     _check_out_dir(out_dir)
+    check_replaceable(out_dir)
     sc = ld.scene
     how = f"{sc.steps} time elements" if sc.steps is not None else f"tolerance {sc.rtol:g}"
     print(f"kedfem {__version__}: solving {sc.name or sc.mech.name} ({sc.scheme}, {how}) ...", flush=True)
     t0 = time.perf_counter()
     res = _solve(sc)
     t1 = time.perf_counter()
-    series = export.write_vtk_series(res, out_dir, scale=args.scale or o.scale, every=args.every or o.every)
-    files = [series.pvd]
-    modes = o.modes if args.modes is None else args.modes
-    if modes:
-        files.append(export.write_mode_shapes(res, out_dir, n_modes=modes).pvd)
-    t2 = time.perf_counter()
+    with RunFolder(out_dir, "export", dict(scene=ld.source)) as rf:
+        series = export.write_vtk_series(res, rf.path, scale=args.scale or o.scale, every=args.every or o.every)
+        staged = [series.pvd]
+        modes = o.modes if args.modes is None else args.modes
+        if modes:
+            staged.append(export.write_mode_shapes(res, rf.path, n_modes=modes).pvd)
+        t2 = time.perf_counter()
+        frame = None
+        if args.render or o.render:
+            from . import render as rd
+            frame = series.peak_frame if args.frame is None else args.frame
+            staged.append(rd.render_series(series, rf.path / "deformed.png", frame=frame))
+        files = [out_dir / Path(f).relative_to(rf.path) for f in staged]
+    t3 = time.perf_counter()
     print(f"VTK series: {len(series.files)} frames, deformation scale {series.scale:g} "
           f"(point data unscaled, SI units)")
-    if args.render or o.render:
-        from . import render as rd
-        frame = series.peak_frame if args.frame is None else args.frame
-        files.append(rd.render_series(series, out_dir / "deformed.png", frame=frame))
+    if frame is not None:
         print(f"rendered frame {frame} (t = {series.times[frame]:.6g} s)")
-    t3 = time.perf_counter()
     print(f"wall time [s]: solve {t1 - t0:.2f}, vtk {t2 - t1:.2f}, render {t3 - t2:.2f}")
     print(f"files in {out_dir}/")
     for f in files:
         print(f"  {_rel(f, out_dir)}")
+    print(f"  {MANIFEST} (run {rf.run_id})")
     if not res.converged:
         print("kedfem: note: the non-linear iteration did not converge", file=sys.stderr)
     return 0
@@ -687,6 +724,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--no-plots", action="store_true", help="no plot")
     s.add_argument("--no-frequencies", action="store_true", help="skip the fundamental frequency of each point")
     s.add_argument("--no-progress", action="store_true", help="no progress bar")
+    s.add_argument("--resume", action="store_true",
+                   help="continue an interrupted sweep from its partial table OUT.partial.csv (the points in it "
+                        "are not solved again; its failed points are)")
     s.set_defaults(func=_cmd_sweep)
 
     e = sub.add_parser("export", parents=[common, scene], help="VTK/PVD series for ParaView, optional PNG render",

@@ -93,8 +93,14 @@ def atomic_path(path):
         raise
 
 
-def _fmt(x) -> str:
-    return repr(float(x))
+#: What a frequency cell of a mode without oscillation (a real eigenvalue pair) reads.
+NON_OSCILLATING = "non-oscillating"
+
+
+def _fmt(x, missing: str = "") -> str:
+    """Full-precision cell; ``missing`` for NaN (no NaN is written to a file)."""
+    x = float(x)
+    return missing if math.isnan(x) else repr(x)
 
 
 def dof_unit(label: str) -> str:
@@ -159,7 +165,9 @@ def write_frequencies_csv(freqs, path) -> Path:
     """Natural frequencies over the cycle (:class:`~kedfem.results.Frequencies`).
 
     Columns ``crank_angle [rad]``, ``modal_k [Hz]``, ``state_space_k [Hz]``,
-    ``damping_ratio_k [-]`` for modes ``k = 1..``.
+    ``damping_ratio_k [-]`` for modes ``k = 1..``; where fewer than ``k``
+    state-space eigenvalues oscillate (overdamped modes), the state-space and
+    damping cells read ``non-oscillating``.
     """
     path = Path(path)
     k = freqs.modal.shape[1]
@@ -170,7 +178,8 @@ def write_frequencies_csv(freqs, path) -> Path:
                    + [f"damping_ratio_{j + 1} [-]" for j in range(k)])
         for i in range(freqs.crank_angle.size):
             w.writerow([_fmt(freqs.crank_angle[i])] + [_fmt(x) for x in freqs.modal[i]]
-                       + [_fmt(x) for x in freqs.state_space[i]] + [_fmt(x) for x in freqs.damping_ratio[i]])
+                       + [_fmt(x, NON_OSCILLATING) for x in freqs.state_space[i]]
+                       + [_fmt(x, NON_OSCILLATING) for x in freqs.damping_ratio[i]])
     return path
 
 
@@ -180,7 +189,9 @@ def write_npz(res, path, freqs=None) -> Path:
     Arrays: ``t``, ``crank_angle``, ``U``, ``V``, ``dof_labels``,
     ``floquet_multipliers``, ``stable``, ``converged``, ``iterations``,
     ``history``, ``residual``, and with ``freqs`` the ``modal``,
-    ``state_space`` and ``damping_ratio`` frequencies.
+    ``state_space`` and ``damping_ratio`` frequencies with the mask
+    ``oscillating`` (False: a mode without oscillation, its two entries 0; no
+    NaN is written).
     """
     path = Path(path)
     arrays = dict(t=res.t, crank_angle=res.crank_angle, U=res.U, V=res.V,
@@ -189,7 +200,9 @@ def write_npz(res, path, freqs=None) -> Path:
                   converged=np.bool_(res.converged), iterations=np.int64(res.iterations),
                   history=np.array(res.history, float), residual=np.float64(res.residual))
     if freqs is not None:
-        arrays.update(modal=freqs.modal, state_space=freqs.state_space, damping_ratio=freqs.damping_ratio)
+        osc = np.isfinite(freqs.state_space)
+        arrays.update(modal=freqs.modal, state_space=np.where(osc, freqs.state_space, 0.0),
+                      damping_ratio=np.where(osc, freqs.damping_ratio, 0.0), oscillating=osc)
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as f:
             np.savez_compressed(f, **arrays)
@@ -420,13 +433,38 @@ def _frame_mesh(mesh: MechanismMesh, k: int, scale: float, field: dict, blocks, 
     point_data = {"displacement": _pad3(mesh.displacement[k]),
                   "position": _pad3(mesh.rigid[k] + mesh.displacement[k])}
     for name, arr in mesh.point_scalars.items():
-        point_data[name] = np.ascontiguousarray(arr[k], dtype=float)
+        a = _finite(np.asarray(arr[k], dtype=float), name, point_data)
+        if a is not None:
+            point_data[name] = a
     if point_extra:
         point_data.update(point_extra)
-    cell_data = {}
+    cells = {}
     for name, arr in mesh.cell_scalars.items():
-        cell_data[name] = [np.ascontiguousarray(arr[k][ix]) for ix in block_idx]
+        a = _finite(np.asarray(arr[k]), name, cells)
+        if a is not None:
+            cells[name] = a
+    cell_data = {name: [np.ascontiguousarray(a[ix]) for ix in block_idx] for name, a in cells.items()}
     return meshio.Mesh(pts, blocks, point_data=point_data, cell_data=cell_data), field
+
+
+#: The flag array that says where a section-force array holds values (1) and where
+#: its member has none (0: rigid members, links without an extreme-fibre distance).
+_COMPUTED = {"nodal_bending_moment": "section_forces_computed", "bending_moment": "section_forces_computed",
+             "axial_force": "section_forces_computed", "nodal_stress": "stress_computed",
+             "stress": "stress_computed"}
+
+
+def _finite(a: np.ndarray, name: str, data: dict):
+    """No NaN in a file: an array with no values is left out; missing values are 0 with a flag array."""
+    if a.dtype.kind != "f":
+        return np.ascontiguousarray(a)
+    nan = np.isnan(a)
+    if nan.all():
+        return None
+    flag = _COMPUTED.get(name)
+    if flag is not None:
+        data[flag] = (~nan).astype(np.int32) if flag not in data else data[flag] & (~nan).astype(np.int32)
+    return np.ascontiguousarray(np.where(nan, 0.0, a))
 
 
 @dataclass(frozen=True)
@@ -477,37 +515,36 @@ def _check_stem(stem: str) -> str:
 
 
 def _write_series(out_dir: Path, stem: str, frames_iter, entries_times, comment: str) -> tuple[Path, list[Path]]:
-    """Write a series atomically: ``out_dir/stem/*.vtu`` and ``out_dir/stem.pvd``.
+    """Write a series as one unit: the folder ``out_dir/stem/`` with ``stem.pvd`` and the frames.
 
-    ``frames_iter`` yields ``(file name, (meshio mesh, field data))``.
+    ``frames_iter`` yields ``(file name, (meshio mesh, field data))``. The
+    folder is written beside its final place and published in one step
+    (:func:`kedfem.outdir.publish_dir`), so a kill leaves the complete old
+    series or the complete new one, its index always naming its own frames.
     """
+    from .outdir import clean_leftovers, publish_dir
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     final = out_dir / stem
-    tmp = out_dir / f".{stem}.tmp-{os.getpid()}-{secrets.token_hex(3)}"
-    old = None
+    if final.exists() and not final.is_dir():
+        raise InputError(f"export: {final} is a file, not a folder")
+    clean_leftovers(final)
+    tmp = out_dir / f".{stem}.staging-{os.getpid()}-{secrets.token_hex(3)}"
     names = []
     try:
         tmp.mkdir()
         for fname, (m, field) in frames_iter:
             _write_vtu(tmp / fname, m, field)
             names.append(fname)
-        if final.exists() or final.is_symlink():
-            old = out_dir / f".{stem}.old-{os.getpid()}-{secrets.token_hex(3)}"
-            os.replace(final, old)
-        os.replace(tmp, final)
+        (tmp / f"{stem}.pvd").write_text(_pvd_text(list(zip(entries_times, names)), comment))
+        legacy = out_dir / f"{stem}.pvd"  # the index beside the folder of earlier versions
+        if legacy.is_file():
+            legacy.unlink()
+        publish_dir(tmp, final)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
-        if old is not None and not final.exists():
-            os.replace(old, final)
         raise
-    pvd = out_dir / f"{stem}.pvd"
-    entries = [(t, f"{stem}/{nm}") for t, nm in zip(entries_times, names)]
-    with atomic_path(pvd) as tp:
-        tp.write_text(_pvd_text(entries, comment))
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
-    return pvd, [final / nm for nm in names]
+    return final / f"{stem}.pvd", [final / nm for nm in names]
 
 
 def _parts_comment(mesh: MechanismMesh, what: str) -> str:
@@ -523,7 +560,8 @@ def write_vtk_series(res, out_dir, *, stem: str = "response", scale: float | Non
     ----------
     res : PeriodicResult
     out_dir : str or Path
-        Folder receiving ``<stem>.pvd`` and ``<stem>/<stem>_0000.vtu`` ...
+        Folder receiving the series folder ``<stem>/`` with its index
+        ``<stem>.pvd`` and the frames ``<stem>_0000.vtu`` ... (replaced whole).
     stem : str
         Base name.
     scale : float, optional

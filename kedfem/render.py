@@ -82,8 +82,15 @@ def render_frame(vtu, png, *, scalars: str | None = None, window_size=(1280, 800
     vtu = Path(vtu)
     if not vtu.is_file():
         raise InputError(f"render: no such VTK file {vtu}")
+    if vtu.suffix.lower() != ".vtu":
+        raise InputError(f"render: {vtu} is not a .vtu frame: render_frame draws one frame of a series "
+                         f"(e.g. response/response_0000.vtu); for a .pvd series use render_series, or "
+                         f"`kedfem export --render --frame K`")
     pv = _pyvista()
-    grid = pv.read(vtu)
+    try:
+        grid = pv.read(vtu)
+    except Exception as e:  # noqa: BLE001 - a reader error on a damaged file
+        raise InputError(f"render: cannot read {vtu} as an unstructured grid: {e}") from None
     if grid.n_points == 0:
         raise InputError(f"render: {vtu} has no points")
     scale = float(grid.field_data["scale"][0]) if "scale" in grid.field_data else 1.0

@@ -47,7 +47,7 @@ from .export import atomic_path, require
 from .results import LinkPeaks
 
 __all__ = ["SweepPoint", "PointResult", "SweepTable", "SweepResult", "make_points", "run_point", "run_sweep",
-           "parse_axis", "pin_blas", "blas_threads", "TABLE_COLUMNS"]
+           "parse_axis", "pin_blas", "blas_threads", "point_rows", "TABLE_COLUMNS", "RETRIES"]
 
 log = logging.getLogger(__name__)
 
@@ -302,6 +302,29 @@ def _cell(v):
     return v
 
 
+def point_rows(p: PointResult, keys: Sequence[str]) -> list[tuple]:
+    """The rows of one point in the tidy table (see :class:`SweepTable`)."""
+    nan = float("nan")
+    pv = dict(p.params)
+    head = (p.index,) + tuple(_cell(pv.get(k)) for k in keys)
+    tail = (p.fundamental, p.spectral_radius, p.stable, p.converged, p.iterations, p.wall_time, p.ok, p.error)
+    errs = {e.link: e for e in p.errors}
+    met = "" if p.error_met is None else p.error_met
+    if not p.peaks:
+        return [head + ("", nan, nan, nan, nan, nan, nan, nan, "") + tail]
+    out = []
+    for lp in p.peaks:
+        e = errs.get(lp.link)
+        out.append(head + (lp.link, lp.deflection, lp.deflection_angle, lp.stress, lp.stress_angle,
+                           lp.stress_station, e.deflection if e else nan, e.stress if e else nan, met) + tail)
+    return out
+
+
+def csv_cells(row: tuple) -> list:
+    """A table row as CSV cells (floats with full precision, NaN as an empty cell)."""
+    return [("" if math.isnan(v) else repr(float(v))) if isinstance(v, float) else v for v in row]
+
+
 @dataclass(frozen=True)
 class SweepTable:
     """A tidy table: one row per (grid point, flexible link); failed points have one row.
@@ -333,7 +356,7 @@ class SweepTable:
             w = csv.writer(f)
             w.writerow(self.names)
             for r in self.rows:
-                w.writerow([repr(float(v)) if isinstance(v, float) else v for v in r])
+                w.writerow(csv_cells(r))
         return path
 
 
@@ -370,22 +393,8 @@ class SweepResult:
         keys = [k for k, _ in self.axes]
         names = ("point",) + tuple(keys) + TABLE_COLUMNS
         rows = []
-        nan = float("nan")
         for p in self.points:
-            pv = dict(p.params)
-            head = (p.index,) + tuple(_cell(pv.get(k)) for k in keys)
-            tail = (p.fundamental, p.spectral_radius, p.stable, p.converged, p.iterations, p.wall_time, p.ok,
-                    p.error)
-            errs = {e.link: e for e in p.errors}
-            met = "" if p.error_met is None else p.error_met
-            if p.peaks:
-                for lp in p.peaks:
-                    e = errs.get(lp.link)
-                    rows.append(head + (lp.link, lp.deflection, lp.deflection_angle, lp.stress, lp.stress_angle,
-                                        lp.stress_station, e.deflection if e else nan, e.stress if e else nan,
-                                        met) + tail)
-            else:
-                rows.append(head + ("", nan, nan, nan, nan, nan, nan, nan, "") + tail)
+            rows.extend(point_rows(p, keys))
         t = SweepTable(names, tuple(rows))
         self._table.append(t)
         return t
@@ -420,7 +429,7 @@ def _failed(p: SweepPoint, e: BaseException) -> PointResult:
     return PointResult(p.index, p.params, False, f"{type(e).__name__}: {' '.join(str(e).split())}")
 
 
-def _run_futures(submit, points, bar, wait):
+def _run_futures(submit, points, bar, wait, on_result=None):
     futs = {}
     for p in points:
         futs[submit(p)] = p
@@ -431,17 +440,108 @@ def _run_futures(submit, points, bar, wait):
             r = fut.result()
         except Exception as e:  # noqa: BLE001 - e.g. a worker process died
             r = _failed(p, e)
-        out[p.index] = r
-        bar.update(1)
-        if not r.ok:
-            log.info("sweep point %d %s failed: %s", p.index, dict(p.params), r.error)
+        _record(out, r, bar, on_result)
+    return out
+
+
+def _record(out, r: PointResult, bar, on_result) -> None:
+    out[r.index] = r
+    bar.update(1)
+    if not r.ok:
+        log.info("sweep point %d %s failed: %s", r.index, dict(r.params), r.error)
+    if on_result is not None:
+        on_result(r)
+
+
+#: Times a point lost to a dead worker process is solved again before it is
+#: recorded as failed (the retry runs it alone in a fresh worker, so the point
+#: that kills its worker is told apart from the ones that ran beside it).
+RETRIES = 1
+
+
+def _marked(fn, mark_dir: str, point: SweepPoint):
+    """Run ``fn(point)`` with a marker file in ``mark_dir`` while it runs (in a worker)."""
+    mark = os.path.join(mark_dir, str(point.index))
+    with open(mark, "w"):
+        pass
+    try:
+        return fn(point)
+    finally:
+        try:
+            os.unlink(mark)
+        except OSError:
+            pass
+
+
+def _pool_round(fn, points, workers, out, bar, on_result):
+    """Solve ``points`` on a fresh pool; returns the points lost to a broken pool."""
+    lost = []
+    with cf.ProcessPoolExecutor(max_workers=workers, initializer=_init_worker, mp_context=_mp_context()) as ex:
+        futs = {ex.submit(fn, p): p for p in points}
+        for fut in cf.as_completed(futs):
+            p = futs[fut]
+            try:
+                r = fut.result()
+            except cf.process.BrokenProcessPool:
+                lost.append(p)
+                continue
+            except Exception as e:  # noqa: BLE001 - e.g. the result could not be unpickled
+                r = _failed(p, e)
+            _record(out, r, bar, on_result)
+    return lost
+
+
+def _run_pool(fn, points, workers, bar, on_result=None, retries: int = RETRIES):
+    """A process pool that survives dead workers.
+
+    When a worker process dies (killed, out of memory), every unfinished
+    point of the pool is lost with it. The points that had not started go
+    back to a new pool; each point that was running is solved again alone in
+    a fresh one-worker pool, up to ``retries`` times, and recorded as failed
+    if its worker dies again.
+    """
+    import tempfile
+    out: dict[int, PointResult] = {}
+    deaths: dict[int, int] = {}
+    queue = list(points)
+    with tempfile.TemporaryDirectory(prefix="kedfem-sweep-") as marks:
+        import functools
+        mfn = functools.partial(_marked, fn, marks)
+        while queue:
+            lost = _pool_round(mfn, queue, workers, out, bar, on_result)
+            queue = []
+            if not lost:
+                break
+            running = {int(n) for n in os.listdir(marks) if n.isdigit()}
+            for n in os.listdir(marks):
+                os.unlink(os.path.join(marks, n))
+            for p in lost:
+                if p.index not in running:
+                    queue.append(p)  # not started: no blame
+                    continue
+                log.warning("sweep point %d %s: its worker process died; solving it again alone",
+                            p.index, dict(p.params))
+                deaths[p.index] = deaths.get(p.index, 0) + 1
+                while True:
+                    if deaths[p.index] > retries:
+                        _record(out, PointResult(
+                            p.index, p.params, False,
+                            f"its worker process died {deaths[p.index]} times (killed by a signal or out of "
+                            f"memory), the last time solving it alone", worker=""), bar, on_result)
+                        break
+                    if not _pool_round(mfn, [p], 1, out, bar, on_result):
+                        break
+                    deaths[p.index] += 1
+            if queue:
+                log.warning("sweep: a worker process died; %d unstarted point(s) go to a new pool", len(queue))
     return out
 
 
 def run_sweep(base: Mapping, axes: Mapping[str, Sequence] | None = None, *, points: Sequence[SweepPoint] | None = None,
               scheduler: str = "processes", executor: cf.Executor | None = None, client=None,
               max_workers: int | None = None, progress: bool | None = None,
-              frequencies: bool = True) -> SweepResult:
+              frequencies: bool = True, done: Mapping[int, PointResult] | None = None,
+              on_result=None, retries: int = RETRIES) -> SweepResult:
     """Solve a grid of scenes in parallel.
 
     Parameters
@@ -467,6 +567,16 @@ def run_sweep(base: Mapping, axes: Mapping[str, Sequence] | None = None, *, poin
         tqdm progress bar on stderr (default: only on a terminal).
     frequencies : bool
         Also compute each point's fundamental frequency.
+    done : mapping of int to PointResult, optional
+        Points already solved (by index, e.g. read back from a partial table
+        with :class:`kedfem.sweep_journal.SweepJournal`): not solved again.
+    on_result : callable, optional
+        Called in this process with each new :class:`PointResult` as it
+        completes (e.g. to append it to a partial table).
+    retries : int
+        With ``scheduler="processes"``: times a point whose worker process
+        died is solved again (alone in a fresh worker) before it is recorded
+        as failed; the points that had not started go to a new pool.
 
     Returns
     -------
@@ -484,26 +594,27 @@ def run_sweep(base: Mapping, axes: Mapping[str, Sequence] | None = None, *, poin
                                     or max_workers < 1):
         raise InputError(f"sweep: max_workers must be an integer >= 1, got {max_workers!r}")
     workers = max_workers or os.cpu_count() or 1
+    if isinstance(retries, bool) or not isinstance(retries, int) or retries < 0:
+        raise InputError(f"sweep: retries must be an integer >= 0, got {retries!r}")
     fn = functools.partial(run_point, frequencies=frequencies)
+    done = {int(k): v for k, v in (done or {}).items()}
+    todo = [p for p in points if p.index not in done]
     t0 = time.perf_counter()
-    with _progress(len(points), progress) as bar:
+    with _progress(len(todo), progress) as bar:
         if executor is not None:
             where = type(executor).__name__
-            out = _run_futures(lambda p: executor.submit(fn, p), points, bar, cf.as_completed)
+            out = _run_futures(lambda p: executor.submit(fn, p), todo, bar, cf.as_completed, on_result)
         elif client is not None:
             where = f"dask {getattr(getattr(client, 'scheduler', None), 'address', 'client')}"
-            out = _run_dask(client, fn, points, bar)
+            out = _run_dask(client, fn, todo, bar, on_result)
         elif scheduler == "serial":
             where = "serial"
             out = {}
-            for p in points:
-                out[p.index] = run_point(p, frequencies=frequencies, pin=False)
-                bar.update(1)
+            for p in todo:
+                _record(out, run_point(p, frequencies=frequencies, pin=False), bar, on_result)
         elif scheduler == "processes":
             where = f"process pool ({workers} workers)"
-            with cf.ProcessPoolExecutor(max_workers=workers, initializer=_init_worker,
-                                        mp_context=_mp_context()) as ex:
-                out = _run_futures(lambda p: ex.submit(fn, p), points, bar, cf.as_completed)
+            out = _run_pool(fn, todo, workers, bar, on_result, retries)
         elif scheduler == "local" or str(scheduler).startswith(("tcp://", "tls://", "ws://", "wss://",
                                                                   "inproc://", "ucx://")):
             dd = require("distributed", "dask", "a Dask sweep")
@@ -511,7 +622,7 @@ def run_sweep(base: Mapping, axes: Mapping[str, Sequence] | None = None, *, poin
                 where = f"dask LocalCluster ({workers} workers)"
                 with dd.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                      dashboard_address=None) as cluster, dd.Client(cluster) as cl:
-                    out = _run_dask(cl, fn, points, bar)
+                    out = _run_dask(cl, fn, todo, bar, on_result)
             else:
                 where = f"dask {scheduler}"
                 try:
@@ -519,18 +630,19 @@ def run_sweep(base: Mapping, axes: Mapping[str, Sequence] | None = None, *, poin
                 except (OSError, TimeoutError) as e:
                     raise KedError(f"sweep: cannot connect to the Dask scheduler {scheduler}: {e}") from None
                 with cl:
-                    out = _run_dask(cl, fn, points, bar)
+                    out = _run_dask(cl, fn, todo, bar, on_result)
         else:
             raise InputError(f"sweep: scheduler must be 'processes', 'serial', 'local' or a Dask address "
                              f"'tcp://host:port', got {scheduler!r}")
     wall = time.perf_counter() - t0
+    out.update(done)
     res = tuple(out[p.index] for p in points)
     nf = sum(not r.ok for r in res)
     log.info("sweep: %d points on %s in %.2f s (%d failed)", len(res), where, wall, nf)
     return SweepResult(ax, res, wall, where)
 
 
-def _run_dask(client, fn, points, bar):
+def _run_dask(client, fn, points, bar, on_result=None):
     from distributed import as_completed
     client.run(pin_blas)
     futs = client.map(fn, list(points), pure=False)
@@ -542,7 +654,6 @@ def _run_dask(client, fn, points, bar):
             r = fut.result()
         except Exception as e:  # noqa: BLE001 - e.g. KilledWorker
             r = _failed(p, e)
-        out[p.index] = r
-        bar.update(1)
+        _record(out, r, bar, on_result)
     return out
 

@@ -48,7 +48,8 @@ def test_default_run_end_to_end(tmp_path):
         assert heading in text, heading
     dest = tmp_path / "kedfem-out"
     for name in ("response.csv", "peaks.csv", "frequencies.csv", "result.npz", "displacement.png",
-                 "link_response.png", "frequencies.png", "floquet.png", "response.pvd", "modes.pvd", "summary.txt"):
+                 "link_response.png", "frequencies.png", "floquet.png", "response/response.pvd", "modes/modes.pvd",
+                 "summary.txt", "kedfem-run.json"):
         assert (dest / name).is_file(), name
         assert name in text
     with open(dest / "response.csv", newline="") as f:
@@ -85,8 +86,8 @@ def test_small_run_in_process_honours_flags(tmp_path, capsys):
     assert rc == 0, err
     assert "zoh, 24 time elements (steps given)" in out and "600 rpm (62.8319 rad/s)" in out
     assert "effects     inertia, coupling" in out
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["frequencies.csv", "peaks.csv", "response.csv",
-                                                          "result.npz", "summary.txt"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["frequencies.csv", "kedfem-run.json", "peaks.csv",
+                                                          "response.csv", "result.npz", "summary.txt"]
 
 
 def test_scene_file_outputs_and_strict(tmp_path, capsys):
@@ -95,8 +96,8 @@ def test_scene_file_outputs_and_strict(tmp_path, capsys):
                      'plots = false\ncsv = false\nnpz = false\nmodes = 0\nevery = 6\n')
     rc, out, err = run(capsys, "run", str(scene), "--strict")
     assert rc == 0, err
-    assert sorted(p.name for p in (tmp_path / "o").iterdir()) == ["response", "response.pvd", "summary.txt"]
-    assert len(list((tmp_path / "o" / "response").iterdir())) == 360 // 6  # output instants / every
+    assert sorted(p.name for p in (tmp_path / "o").iterdir()) == ["kedfem-run.json", "response", "summary.txt"]
+    assert len(list((tmp_path / "o" / "response").glob("*.vtu"))) == 360 // 6  # output instants / every
 
 
 def one_line_error(rc, err, *words):
@@ -188,7 +189,7 @@ def test_sweep_and_export_commands(tmp_path, capsys):
                        "--out", str(tmp_path / "e"))
     assert rc == 0, err
     e = tmp_path / "e"
-    assert (e / "response.pvd").is_file() and len(list((e / "modes").iterdir())) == 2
+    assert (e / "response" / "response.pvd").is_file() and len(list((e / "modes").glob("*.vtu"))) == 2
     import matplotlib.image as mpimg
     img = mpimg.imread(str(e / "deformed.png"))[..., :3]
     assert 0.002 < 1.0 - np.all(img > 0.97, axis=-1).mean() < 0.9 and img.std() > 0.02   # not blank

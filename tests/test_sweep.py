@@ -118,3 +118,67 @@ def test_serial_sweep_and_bad_scheduler():
     assert ok.ok and not bad.ok and "steps" in bad.error and "20000" in bad.error
     with pytest.raises(kf.InputError, match="scheduler"):
         sweep.run_sweep(BASE, {"steps": [12]}, scheduler="threads")
+
+
+# ------------------------------------------------------- dead workers, resume
+def _suicidal(point):
+    """A worker function: point 2 kills its own process (``once``: only the first time)."""
+    import os
+    import signal
+    from pathlib import Path
+    flag = Path(point.scene["dir"]) / f"died-{point.index}"
+    if point.index == 2 and not (point.scene["once"] and flag.exists()):
+        flag.touch()
+        os.kill(os.getpid(), signal.SIGKILL)
+    return sweep.PointResult(point.index, point.params, True, wall_time=0.0, worker=str(os.getpid()))
+
+
+@pytest.mark.parametrize("once", [True, False])
+def test_a_dead_worker_costs_no_other_point(tmp_path, once):
+    """SIGKILL of one worker broke the whole pool (5 of 8 points lost); now the pool is rebuilt, the
+    points that ran beside it are solved again alone, and a point that kills its worker twice is failed."""
+    points = [sweep.SweepPoint(i, (("k", i),), {"dir": str(tmp_path), "once": once}) for i in range(8)]
+    seen = []
+
+    class Bar:
+        def update(self, n):
+            pass
+    out = sweep._run_pool(_suicidal, points, 2, Bar(), on_result=seen.append)
+    assert sorted(out) == list(range(8)) and sorted(r.index for r in seen) == list(range(8))  # each once
+    assert all(out[i].ok for i in range(8) if i != 2)
+    if once:
+        assert out[2].ok
+    else:
+        assert not out[2].ok and "died 2 times" in out[2].error
+
+
+def test_partial_table_resumes_only_the_missing_points(tmp_path):
+    from kedfem.sweep_journal import SweepJournal, sweep_signature
+    axes = {"speed_rpm": [250.0, 500.0, 750.0]}
+    points = sweep.make_points(BASE, axes)
+    res = sweep.run_sweep(BASE, axes, scheduler="serial", progress=False, frequencies=False)
+    j = SweepJournal(tmp_path / "s.partial.csv", sweep_signature(BASE, axes), list(axes))
+    j.start()
+    for r in res.points[:2]:
+        j.append(r)
+    j.close()
+    # a kill in the middle of a write: a truncated last line is dropped with its point
+    with open(j.path, "a") as f:
+        f.write("2,750.0,rod,0.0012")
+    back = SweepJournal(j.path, sweep_signature(BASE, axes), list(axes)).read(points)
+    assert sorted(back) == [0, 1]
+    for i in (0, 1):
+        a, b = back[i], res.points[i]
+        assert (a.ok, a.converged, a.iterations, a.spectral_radius) == (b.ok, b.converged, b.iterations,
+                                                                        b.spectral_radius)
+        assert a.peaks == b.peaks and [e.stress for e in a.errors] == [e.stress for e in b.errors]
+    solved = []
+    again = sweep.run_sweep(BASE, axes, scheduler="serial", progress=False, frequencies=False, done=back,
+                            on_result=solved.append)
+    assert [r.index for r in solved] == [2]
+    def text(rows):
+        return [[repr(v) for v in r] for r in rows]
+    assert text(again.table().rows[:2]) == text(res.table().rows[:2])
+    # another sweep's partial table is not resumed into this one
+    with pytest.raises(kf.InputError, match="another sweep"):
+        SweepJournal(j.path, sweep_signature(BASE, {"speed_rpm": [1.0]}), ["speed_rpm"]).read(points)
