@@ -2,8 +2,12 @@
 
 A linkage running fast enough becomes parametrically unstable: a Floquet
 multiplier of its periodic, time-varying equations leaves the unit circle.
-For each shipped mechanism (its preset effects and damping) this study finds
-the onset speed by bisection on the largest multiplier modulus ``rho = 1``,
+For each shipped mechanism (2 % modal damping, the linear effects inertia,
+coupling and axial_stiffening: the onset of the linearised KED equations; the
+four-bar and six-bar presets add geometric_nonlinearity, whose multipliers are
+those of the linearisation about the converged response and are not studied
+here) this study finds the onset speed by bisection on the largest multiplier
+modulus ``rho = 1``,
 
 (a) from the default, tolerance-driven solve (``kf.solve(kf.Scene(m, ...))``,
     ``res.stability``: Radau IIA collocation on the finest of the three levels

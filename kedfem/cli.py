@@ -470,6 +470,13 @@ def _cmd_validate(args) -> int:
 
 
 # ----------------------------------------------------------------- sweep
+def _short(v) -> str:
+    """A sweep value for the console table (the CSV keeps full precision)."""
+    if isinstance(v, float):
+        return f"{v:.8g}"
+    return str(v)
+
+
 def _cmd_sweep(args) -> int:
     from . import scenefile as sf
     from . import sweep as sw
@@ -523,7 +530,7 @@ def _cmd_sweep(args) -> int:
           f"{'f1 [Hz]':>9s} {'rho':>8s} {'time [s]':>8s}")
     for p in res.points:
         pv = dict(p.params)
-        vals = "  ".join(f"{str(sw._cell(pv.get(k))):>14s}" for k in keys)
+        vals = "  ".join(f"{_short(sw._cell(pv.get(k))):>14s}" for k in keys)
         if p.ok:
             s = max((lp.stress for lp in p.peaks if math.isfinite(lp.stress)), default=float("nan"))
             d = max((lp.deflection for lp in p.peaks), default=float("nan"))

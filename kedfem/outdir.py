@@ -13,8 +13,9 @@ processes) is removed by the next run into the same folder.
 
 A folder is only replaced if kedfem wrote everything in it (its manifest lists
 every entry, or, for folders of earlier versions without a manifest, every
-entry has a name kedfem writes); a folder holding anything else is an input
-error, so ``--out ~/project`` cannot delete a user's files.
+entry has a name kedfem writes and its ``summary.txt`` or ``sweep.csv`` is
+kedfem's); a folder holding anything else is an input error, so ``--out
+~/project`` cannot delete a user's files, not even a ``peaks.csv`` of theirs.
 """
 
 from __future__ import annotations
@@ -103,10 +104,30 @@ def check_replaceable(final: Path) -> None:
             listed = None
     allowed = listed if listed is not None else KNOWN
     foreign = sorted(n for n in names if n not in allowed and not _HIDDEN_TMP.match(n))
+    if not foreign and listed is None and not _legacy_run(final):
+        # names kedfem writes, but nothing says kedfem wrote them: a user's own peaks.csv is not ours
+        foreign = sorted(n for n in names if not _HIDDEN_TMP.match(n))
     if foreign:
         shown = ", ".join(foreign[:4]) + (", ..." if len(foreign) > 4 else "")
         raise InputError(f"--out {final}: the folder holds files kedfem did not write ({shown}); a run "
                          f"replaces its output folder whole, so choose a new or empty folder, or move them")
+
+
+def _legacy_run(folder: Path) -> bool:
+    """A run folder of a version before the manifest: its summary or sweep table says kedfem wrote it."""
+    try:
+        summary = folder / "summary.txt"
+        if summary.is_file():
+            with open(summary, errors="replace") as f:
+                return f.readline().startswith("kedfem ")
+        table = folder / "sweep.csv"
+        if table.is_file():
+            with open(table, errors="replace") as f:
+                return f.readline().startswith("point,") and "peak_stress_Pa" in table.read_text()[:2000]
+        series = [folder / n for n in ("response", "modes") if (folder / n).is_dir()]
+        return bool(series) and all(any(p.suffix == ".vtu" for p in d.iterdir()) for d in series)
+    except OSError:
+        return False
 
 
 _RENAME_EXCHANGE = 2

@@ -840,6 +840,9 @@ class PeriodicResult:
     def frequencies(self, n_modes: int = 4, nodes=None) -> Frequencies:
         """Natural frequencies over the cycle at the converged periodic state.
 
+        (The batched eigenproblems run with one BLAS thread: OpenBLAS's own
+        threads made them 5-10x slower whenever the other core was busy.)
+
         The co-moving-frame matrices of the scene's effects (each link in its
         own rotating frame), plus the tangent stiffness of the state-dependent
         effects at the converged response. ``modal``: undamped eigenanalysis;
@@ -855,6 +858,12 @@ class PeriodicResult:
             ``range(0, n, n // 36)``, give the cycle means of a fine time grid
             at a fraction of the cost (an eigenvalue problem per node).
         """
+        from .periodic import _blas_one_thread
+        with _blas_one_thread():
+            return self._frequencies(n_modes, nodes)
+
+    def _frequencies(self, n_modes: int = 4, nodes=None) -> Frequencies:
+        """The body of :meth:`frequencies`."""
         if nodes is None:
             idx = None
             key = ("freq", n_modes)

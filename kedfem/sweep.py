@@ -85,8 +85,32 @@ def blas_threads() -> int:
     return max((int(i.get("num_threads", 1)) for i in threadpool_info()), default=1)
 
 
-def _init_worker() -> None:
+#: Seconds between a worker's checks that the sweep's main process is alive.
+WATCHDOG_PERIOD = 1.0
+
+
+def _init_worker(parent: int | None = None) -> None:
     pin_blas()
+    if parent is not None:
+        _watch_parent(parent)
+
+
+def _watch_parent(parent: int) -> None:
+    """End this worker when the sweep's main process is gone (killed with SIGKILL, it cannot
+    shut its pool down; the workers would run on, orphaned, to the end of their points)."""
+    import threading
+
+    def watch():
+        while True:
+            time.sleep(WATCHDOG_PERIOD)
+            try:
+                os.kill(parent, 0)
+            except ProcessLookupError:
+                os._exit(3)
+            except PermissionError:  # pragma: no cover - another user's process took the pid
+                os._exit(3)
+
+    threading.Thread(target=watch, name="kedfem-parent-watchdog", daemon=True).start()
 
 
 def _mp_context():
@@ -476,7 +500,8 @@ def _marked(fn, mark_dir: str, point: SweepPoint):
 def _pool_round(fn, points, workers, out, bar, on_result):
     """Solve ``points`` on a fresh pool; returns the points lost to a broken pool."""
     lost = []
-    with cf.ProcessPoolExecutor(max_workers=workers, initializer=_init_worker, mp_context=_mp_context()) as ex:
+    with cf.ProcessPoolExecutor(max_workers=workers, initializer=_init_worker, initargs=(os.getpid(),),
+                                mp_context=_mp_context()) as ex:
         futs = {ex.submit(fn, p): p for p in points}
         for fut in cf.as_completed(futs):
             p = futs[fut]

@@ -123,3 +123,48 @@ def test_killed_sweeps_resume_each_point_once(tmp_path):
     with open(out / "sweep.csv", newline="") as f:
         pts = [row["point"] for row in csv.DictReader(f)]
     assert sorted(map(int, pts)) == list(range(6)) and not partial.exists()
+
+
+def _descendants(pid: int) -> set[int]:
+    parent = {}
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                parent[int(d.name)] = int((d / "stat").read_text().rsplit(")", 1)[1].split()[1])
+            except (OSError, IndexError, ValueError):
+                pass
+    out, todo = set(), [pid]
+    while todo:
+        p = todo.pop()
+        kids = [c for c, pp in parent.items() if pp == p]
+        out.update(kids)
+        todo.extend(kids)
+    return out
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc")
+def test_a_killed_sweep_leaves_no_orphaned_workers(tmp_path):
+    """kill -9 of a sweep's main process left its pool workers (and the forkserver) running on."""
+    p = start(("sweep", "four_bar", "--param", "speed_rpm=100:300:20", "--scheduler", "processes",
+               "--workers", "2", "--no-progress"), tmp_path / "s")
+    deadline = time.time() + 60
+    kids = set()
+    while time.time() < deadline and len(kids) < 3:  # resource tracker, forkserver, workers
+        time.sleep(0.2)
+        kids = _descendants(p.pid)
+    assert len(kids) >= 3, kids
+    time.sleep(1.0)
+    p.send_signal(signal.SIGKILL)
+    p.wait()
+    deadline = time.time() + 15
+    while time.time() < deadline and any(_alive(k) for k in kids):
+        time.sleep(0.2)
+    assert not any(_alive(k) for k in kids), [k for k in kids if _alive(k)]

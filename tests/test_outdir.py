@@ -51,8 +51,15 @@ def test_a_folder_with_foreign_files_is_refused_before_any_work(tmp_path, capsys
     old = tmp_path / "old"
     (old / "response").mkdir(parents=True)
     (old / "response.pvd").write_text("stale")
-    (old / "summary.txt").write_text("kedfem")
+    (old / "summary.txt").write_text("kedfem 0.1.0: slider-crank\n")
     check_replaceable(old)
+    # ... but a user's own files that merely share kedfem's names are not replaced
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "peaks.csv").write_text("my,data\n")
+    (mine / "summary.txt").write_text("my notes\n")
+    with pytest.raises(InputError, match="peaks.csv"):
+        check_replaceable(mine)
     # a manifest vouches only for the files it lists
     with RunFolder(tmp_path / "m", "run") as rf:
         (rf.path / "a.csv").write_text("1")
