@@ -5,7 +5,8 @@ them with the effects and damping a study runs them with. None of them is
 tuned to kedfem's defaults: they are the kinds of linkage engineers bring
 (a steel crank-rocker at 600 rpm, a drag link, a Stephenson six-bar whose
 coupler is a welded T, a vertical slider-crank with gravity and a return
-spring, all members flexible where it matters).
+spring, an offset slider-crank whose flexible crank and rod meet at a pin, run
+with the geometric non-linearity; all members flexible where it matters).
 """
 
 from __future__ import annotations
@@ -117,6 +118,21 @@ def vertical_slider_crank(rpm: float = 900.0, elements: int = 4) -> kf.Mechanism
     return m
 
 
+def offset_slider_crank(rpm: float = 1432.4, elements: int = 4) -> kf.Mechanism:
+    """Offset slider-crank with a flexible crank and rod pinned together (a new user's trial linkage)."""
+    steel = kf.Material(E=2.0e11, rho=7850.0)
+    crank, rod, offset = 0.10, 0.35, 0.03
+    m = kf.Mechanism("offset-slider-crank")
+    m.ground("O", at=(0.0, 0.0))
+    m.joint("A", at=(crank, 0.0))
+    m.slider("B", at=(crank + math.sqrt(rod**2 - offset**2), offset), axis=(1.0, 0.0))
+    m.link("crank", "O", "A", material=steel, section=kf.Section.rectangle(0.02, 0.008), elements=elements)
+    m.link("rod", "A", "B", material=steel, section=kf.Section.rectangle(0.012, 0.006), elements=elements)
+    m.point_mass("B", 0.5)
+    m.drive("crank", speed=rpm * 2 * math.pi / 60)
+    return m
+
+
 #: name -> (builder, effects, damping)
 CASES = {
     "crank_rocker": (crank_rocker, ("inertia", "coupling", "axial_stiffening"), kf.ModalDamping(0.02)),
@@ -125,4 +141,6 @@ CASES = {
     "vertical_slider_crank": (vertical_slider_crank,
                               ("inertia", "coupling", "axial_stiffening", "gravity", "springs"),
                               kf.Rayleigh(alpha=2.0, beta=2e-5)),
+    "offset_slider_crank": (offset_slider_crank, ("inertia", "coupling", "geometric_nonlinearity"),
+                            kf.ModalDamping(0.02)),
 }

@@ -517,10 +517,12 @@ class _Run:
             ratio = self.levels[-1].n / self.levels[-2].n
             err = abs(rho[-1] - rho[-2]) / (ratio ** error.rate - 1.0)
         verdict = stability_verdict(rho[-1], err)
-        if (verdict == "marginal" and len(rho) >= 2 and min(rho[-2:]) > 1.0 + 1e-9
+        if (verdict == "marginal" and len(rho) >= 2 and rho[-1] > 1.0 + 1e-9
+                and (min(rho[-2:]) > 1.0 + 1e-9 or rho[-1] >= rho[-2])
                 and self.scheme.name.startswith("radau")):
-            # Radau's numerical damping lowers the multipliers: growth on the two finest levels is
-            # real (a buckling rod: 1e51 on 48 elements, its change from 24 as large)
+            # Radau's numerical damping lowers the multipliers, the less the finer the level:
+            # growth on the two finest levels, or growth that rises with refinement, is real
+            # (a buckling rod: 1e51 on 48 elements, its change from 24 as large)
             verdict = "unstable"
         note = ""
         if undamped(self.scene) and verdict != "unstable":

@@ -349,7 +349,9 @@ class PeriodicResult:
     error: object = None
     sampler: object = field(default=None, repr=False, compare=False)
     stability: Stability | None = None
-    _cache: dict = field(default_factory=dict, repr=False, compare=False)
+    # not an init field: dataclasses.replace(res, U=...) gets an empty cache, not the old
+    # result's deflections and stresses
+    _cache: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     # ---------------------------------------------------------------- basics
     @property
@@ -797,8 +799,9 @@ class PeriodicResult:
         if t.ndim != 1 or not np.all(np.isfinite(t)):
             raise InputError("resample: times / crank angles must be a 1-D array of finite numbers")
         motion, U, V = self.sampler.at(t)
-        return dataclasses.replace(self, motion=motion, t=motion.t, crank_angle=motion.crank_angle,
-                                   U=U, V=V, _cache={"source": self._cache.get("source", self)})
+        out = dataclasses.replace(self, motion=motion, t=motion.t, crank_angle=motion.crank_angle, U=U, V=V)
+        out._cache["source"] = self._cache.get("source", self)
+        return out
 
     def observables(self):
         """Peaks and histories of every flexible link (what the error estimate compares).

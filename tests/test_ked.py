@@ -251,3 +251,14 @@ def test_absurd_density_is_a_named_error_not_a_linalg_traceback():
             warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)   # numpy's overflow on the way to the error
         kf.solve(kf.Scene(m, effects=("inertia", "coupling", "springs"), damping=kf.ModalDamping(0.02)))
+
+
+def test_replace_does_not_share_the_old_results_cache():
+    """``dataclasses.replace(res, U=...)`` returned the old deflections from a shared cache (issue 13)."""
+    res = kf.solve(kf.Scene(mechanisms.build("slider_crank"), effects=("inertia", "coupling"),
+                            damping=kf.ModalDamping(0.02), steps=48, estimate=False))
+    d = res.deflection("rod", 0.5, relative_to="chord")
+    s = res.stress("rod")
+    twice = dataclasses.replace(res, U=2.0 * res.U, V=2.0 * res.V)
+    np.testing.assert_allclose(twice.deflection("rod", 0.5, relative_to="chord"), 2.0 * d, rtol=1e-12)
+    assert not np.allclose(twice.stress("rod"), s)

@@ -29,18 +29,18 @@ def test_von_karman_four_bar_at_its_own_speed_converges_on_180_elements():
 
 
 def test_all_effects_far_beyond_the_onset_is_named():
-    """2.5x the onset speed (592.7 rpm): on 360 elements the first solve overflows, a named error
-    (it was numpy's LinAlgError); on 180 the von Karman iteration's unbounded iterate ends it with
-    converged=False, a ConvergenceWarning and the verdict 'unstable' (it read 'marginal', |mu| = 1e217)."""
+    """2.5x the onset speed (592.7 rpm) with every effect: numpy's LinAlgError once; then |mu| = 1e217
+    read 'marginal'. Now the von Karman iteration's unbounded iterates end each level (the plain
+    iteration, then Anderson), the refinement stops after three failing levels, and the result says
+    converged=False, 'unstable', with a ConvergenceWarning. (An overflow of the transition itself is
+    the named UnboundedResponseError: tests/test_time_schemes.py.)"""
     m = mechanisms.build("four_bar", speed=1500 * RPM)
-    with pytest.raises(kf.UnboundedResponseError, match="response unbounded"), warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        kf.solve(kf.Scene(m, effects="all", damping=kf.ModalDamping(0.02), steps=360))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        res = kf.solve(kf.Scene(m, effects="all", damping=kf.ModalDamping(0.02), steps=180))
-    assert not res.converged and res.stability.verdict == "unstable"
-    assert any(issubclass(w.category, kf.ConvergenceWarning) and "unbounded" in str(w.message) for w in caught)
+        res = kf.solve(kf.Scene(m, effects="all", damping=kf.ModalDamping(0.02)))
+    assert not res.converged and res.stability.verdict == "unstable" and not res.stable
+    assert any(issubclass(w.category, kf.ConvergenceWarning) for w in caught)
+    assert any(issubclass(w.category, kf.AccuracyWarning) for w in caught)
 
 
 def test_a_buckling_rod_is_unstable_not_marginal():
