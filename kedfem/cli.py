@@ -141,8 +141,7 @@ class _Loaded:
 
 def _load(target: str | None, overrides: dict) -> _Loaded:
     """Scene from a file, a mechanism name or the built-in default, with command-line overrides."""
-    import mechanisms
-
+    from . import catalogue
     from . import scenefile as sf
     from .defaults import default_scene
     from .scenefile import RPM, Outputs
@@ -173,10 +172,12 @@ def _load(target: str | None, overrides: dict) -> _Loaded:
     if p.suffix.lower() == ".toml" or p.is_file():
         spec = sf.load_spec(p, overrides)
         return _Loaded(spec.scene, spec.outputs, sf.with_overrides(spec.data, overrides), spec.sweep, str(p))
-    key = target.replace("-", "_")
-    if key not in mechanisms.available():
-        raise InputError(f"no scene file or mechanism named {target!r}{sf._suggest(key, mechanisms.available())}; "
-                         f"mechanisms: {', '.join(mechanisms.available())} (kedfem list)")
+    key = target if catalogue.is_reference(target) else target.replace("-", "_")
+    if not catalogue.is_reference(key) and key not in catalogue.available():
+        avail = catalogue.available()
+        raise InputError(f"no scene file or mechanism named {target!r}{sf._suggest(key, avail)}; "
+                         f"mechanisms: {', '.join(avail)} (kedfem list), or 'package.module:function' for a "
+                         f"builder of your own")
     data = sf.with_overrides({"mechanism": {"name": key}}, overrides)
     spec = sf.parse_scene(data, source=f"mechanism {key}", overridden=overrides)
     return _Loaded(spec.scene, spec.outputs, data, {}, f"mechanism {key} (preset scene)")
@@ -433,8 +434,7 @@ def _cmd_run(args) -> int:
 
 # -------------------------------------------------------------- validate
 def _cmd_validate(args) -> int:
-    import mechanisms
-
+    from . import catalogue
     from .effects import Rayleigh
     from .scene import Scene
     from .validation import table3, validate
@@ -449,7 +449,7 @@ def _cmd_validate(args) -> int:
         print(rep.table())
         print()
     print("modal-superposition check: exciter (time-invariant cantilever, Rayleigh damping)")
-    scene = Scene(mechanisms.build("exciter"), effects=("inertia", "coupling", "springs"),
+    scene = Scene(catalogue.build("exciter"), effects=("inertia", "coupling", "springs"),
                   damping=Rayleigh(0.0, 1e-4), name="exciter")
     with _report_warnings():
         rep = validate(scene, foh_steps=args.steps or 180)
@@ -619,15 +619,14 @@ def _param_docs(module) -> dict[str, str]:
 
 
 def _cmd_list(args) -> int:
-    import mechanisms
-
+    from . import catalogue
     from .effects import EFFECTS
     from .scene import HOLDS, NONLINEAR_METHODS
     from .scenefile import describe_damping, mechanism_parameters, preset
     print("mechanisms (kedfem run NAME; parameters go in the [mechanism] table of a scene file, SI units;")
     print("            the speed is the top-level speed_rpm):")
-    for name in mechanisms.available():
-        mod = mechanisms.get(name)
+    for name in catalogue.available():
+        mod = catalogue.get(name)
         doc = (inspect.getdoc(mod.build) or "").splitlines()
         pre = preset(name)
         print(f"\n  {name}: {doc[0] if doc else ''}")

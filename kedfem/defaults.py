@@ -32,7 +32,7 @@ def default_scene(group: int = 1, steps: int | None = None, **mechanism_params) 
         time scheme, the paper's fixed-point iteration (Newton-like with the
         tangent terms) to ``eps = 1e-6``.
     """
-    from mechanisms import mould_oscillator
-    mech = mould_oscillator.build(group=group, **mechanism_params)
+    from .catalogue import build
+    mech = build("mould_oscillator", group=group, **mechanism_params)
     return Scene(mech, steps=steps, effects=MOULD_EFFECTS, damping=ModalDamping(0.02),
                  eps=1e-6, nonlinear_method="fixed-point", name=f"mould oscillator, group {group}")

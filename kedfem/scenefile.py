@@ -405,24 +405,28 @@ _OUTPUT_KEYS = ("dir", "plots", "csv", "npz", "vtk", "render", "modes", "scale",
 
 
 def _mechanism(ctx: _Ctx, data: Mapping):
-    import mechanisms
+    from . import catalogue
     if "mechanism" not in data:
         raise ctx.error("mechanism", "missing: a scene needs a [mechanism] table with name = one of "
-                        f"{', '.join(mechanisms.available())}")
+                        f"{', '.join(catalogue.available())}")
     m = data["mechanism"]
     if isinstance(m, str):
         m = {"name": m}
     _table(ctx, "mechanism", m)
     if "name" not in m:
         raise ctx.error("mechanism.name", "missing: name the mechanism, one of "
-                        f"{', '.join(mechanisms.available())}")
+                        f"{', '.join(catalogue.available())}")
     name = _str(ctx, "mechanism.name", m["name"])
-    key = name.replace("-", "_")
-    avail = mechanisms.available()
-    if key not in avail:
+    ref = catalogue.is_reference(name)
+    key = name if ref else name.replace("-", "_")
+    avail = catalogue.available()
+    if not ref and key not in avail:
         raise ctx.error("mechanism.name", f"unknown mechanism {name!r}{_suggest(key, avail)}; "
-                        f"available: {', '.join(avail)}")
-    module = mechanisms.get(key)
+                        f"available: {', '.join(avail)}, or 'package.module:function' for a builder of your own")
+    try:
+        module = catalogue.get(key)
+    except KedError as e:
+        raise ctx.error("mechanism.name", str(e)) from None
     defaults = mechanism_parameters(module)
     params = {}
     for k, v in m.items():
@@ -581,8 +585,8 @@ def _sweep(ctx, v, mech_key: str) -> dict[str, tuple]:
     if v is None:
         return {}
     _table(ctx, "sweep", v)
-    import mechanisms
-    params = mechanism_parameters(mechanisms.get(mech_key))
+    from . import catalogue
+    params = mechanism_parameters(catalogue.get(mech_key))
     axes = {}
     n = 1
     for path, values in _flatten(v):

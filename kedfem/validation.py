@@ -256,7 +256,8 @@ def table3(steps: int | None = None, **overrides) -> ValidationReport:
     ValidationReport
         One :class:`FrequencyCheck` per group, with the paper's values.
     """
-    from mechanisms import mould_oscillator as mo
+    from .catalogue import get
+    mo = get("mould_oscillator")
 
     from .defaults import default_scene
     checks = []
