@@ -118,7 +118,7 @@ def vertical_slider_crank(rpm: float = 900.0, elements: int = 4) -> kf.Mechanism
     return m
 
 
-def offset_slider_crank(rpm: float = 1432.4, elements: int = 4) -> kf.Mechanism:
+def offset_slider_crank(rpm: float = 150.0 * 60 / (2 * math.pi), elements: int = 4) -> kf.Mechanism:
     """Offset slider-crank with a flexible crank and rod pinned together (a new user's trial linkage)."""
     steel = kf.Material(E=2.0e11, rho=7850.0)
     crank, rod, offset = 0.10, 0.35, 0.03

@@ -678,7 +678,10 @@ def parse_scene(data: Mapping, *, source: str | None = None, text: str | None = 
     try:
         scene = Scene(mech, **kw)
     except KedError as e:
-        raise ctx.error(None, str(e)) from None
+        # name the key the Scene's check is about (the cycle: the speed; else the mechanism)
+        msg = str(e)
+        key = "speed_rpm" if ("speed_rpm" in data and ("cycle" in msg or "speed" in msg)) else "mechanism"
+        raise ctx.error(key, msg) from None
     clean = {k: copy.deepcopy(v) for k, v in data.items() if k not in ("output", "sweep")}
     return SceneSpec(scene, outputs, sweep, clean)
 

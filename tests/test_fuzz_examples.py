@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 from hypothesis import HealthCheck, assume, event, given, settings
 from hypothesis import strategies as st
-from test_scenefile import keys, to_toml, values  # tests/ is on sys.path under pytest
+from test_scenefile import keys, mutate, to_toml, values  # tests/ is on sys.path under pytest
 
 import kedfem as kf
 from kedfem import scenefile as sf
@@ -39,25 +39,12 @@ PLAUSIBLE = st.one_of(
 )
 
 
-def mutated(path: Path, muts) -> dict:
-    d = tomllib.loads(path.read_text())
-    for table, key, value in muts:
-        t = d if table == "" else d.setdefault(table, {})
-        if not isinstance(t, dict):
-            continue
-        if value is None:
-            t.pop(key, None)
-        else:
-            t[key] = value
-    return d
-
-
 @settings(max_examples=300, deadline=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(st.sampled_from(EXAMPLES), st.lists(st.one_of(PLAUSIBLE, PLAUSIBLE, st.tuples(
     st.sampled_from(TABLES), keys, st.one_of(st.none(), values))), min_size=1, max_size=3))
 def test_mutated_example_scenes_load_and_solve_or_name_the_problem(tmp_path, path, muts):
-    d = mutated(path, muts)
+    d = mutate(muts, tomllib.loads(path.read_text()))
     try:
         text = to_toml(d)
     except TypeError:

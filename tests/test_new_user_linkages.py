@@ -7,27 +7,18 @@ was 0.21x the true one; with light Rayleigh damping a coarse level's diverged
 iterate, used as the warm start of the next, sent the solve to overflow.
 """
 
-import math
+import sys
 import warnings
+from pathlib import Path
 
 import pytest
 
 import kedfem as kf
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from linkages import offset_slider_crank  # noqa: E402  (the benchmarks' linkages outside the catalogue)
+
 EFFECTS = ("inertia", "coupling", "geometric_nonlinearity")
-
-
-def offset_slider_crank(speed=150.0, elements=4, crank=0.10, rod=0.35, offset=0.03, slider_mass=0.5):
-    steel = kf.Material(E=2.0e11, rho=7850.0)
-    m = kf.Mechanism("offset-slider-crank")
-    m.ground("O", at=(0.0, 0.0))
-    m.joint("A", at=(crank, 0.0))
-    m.slider("B", at=(crank + math.sqrt(rod**2 - offset**2), offset), axis=(1.0, 0.0))
-    m.link("crank", "O", "A", material=steel, section=kf.Section.rectangle(0.02, 0.008), elements=elements)
-    m.link("rod", "A", "B", material=steel, section=kf.Section.rectangle(0.012, 0.006), elements=elements)
-    m.point_mass("B", slider_mass)
-    m.drive("crank", speed=speed)
-    return m
 
 
 @pytest.fixture(scope="module")

@@ -241,9 +241,10 @@ keys = st.one_of(st.sampled_from(sorted({k for v in KNOWN.values() for k in v}))
 mutation = st.tuples(st.sampled_from(sorted(KNOWN)), keys, st.one_of(st.none(), values))
 
 
-def mutate(muts):
+def mutate(muts, base=None):
+    """``base`` (default :data:`BASE`) with the mutations ``(table, key, value or None: remove)``."""
     import copy
-    d = copy.deepcopy(BASE)
+    d = copy.deepcopy(BASE if base is None else base)
     for table, key, value in muts:
         t = d if table == "" else d.setdefault(table, {})
         if not isinstance(t, dict):
