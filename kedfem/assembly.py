@@ -19,7 +19,7 @@ forms ``E^T M E``, ``E^T (C E + 2 M E')``, ``E^T (K E + C E' + M E'')`` and
 scatters them once through a sparse operator built from the element DOF
 index map (``(n_el, m)``, COO -> CSR).
 
-Rules (DESIGN.md section 2): revolute joints share translations and keep
+Rules (docs/theory.md section 2): revolute joints share translations and keep
 separate rotations; welded joints share rotations; sliders constrain the
 normal direction; rigid links add no elastic DOFs of their own (a rigid
 member group has at most a reference translation and one rotation); the

@@ -2,7 +2,7 @@
 
 The structure is always assembled: beam mass and stiffness, rigid-member
 and point masses, the linear stiffness of declared springs and drive
-shafts. Each *effect* adds terms on top (DESIGN.md section 2); an effect not
+shafts. Each *effect* adds terms on top (docs/theory.md sections 2-3); an effect not
 named is never evaluated:
 
 ============================ ================================================ ===============

@@ -8,7 +8,7 @@ translations [m] and nodal rotations [rad] at the element's start (1) and end
 (2) node. Axial displacement is interpolated linearly, transverse
 displacement by cubic Hermite polynomials (Euler-Bernoulli).
 
-The rigid-elastic coupling integrals follow DESIGN.md section 2 with the
+The rigid-elastic coupling integrals follow docs/theory.md section 2 with the
 shape-function matrix ``N(x) = [[N_u], [N_v]]`` (2 x 6):
 
 * ``m_t = int rhoA N^T N dx`` (translational mass; equals the consistent mass

@@ -1,6 +1,6 @@
 """Flexible four-bar linkage (Sutherland 1976; Kitis et al. 1990).
 
-References: ``../shared/references/README.md`` section 4. Ground 0.254 m,
+References: ``docs/references.md`` section 4. Ground 0.254 m,
 crank 0.108 m, coupler 0.2794 m, follower 0.2705 m; aluminium (rho = 2714
 kg/m^3, E = 7.1e10 Pa); crank A = 1.0774e-4 m^2, EI = 11.472 N m^2; coupler and
 follower A = 4.0645e-5 m^2, EI = 0.616 N m^2; lumped masses 0.042 kg at the

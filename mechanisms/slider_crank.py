@@ -1,6 +1,6 @@
 """Flexible slider-crank (Simeon 1996; the Bari IVP test set).
 
-References: ``../shared/references/README.md`` section 5. Rigid crank
+References: ``docs/references.md`` section 5. Rigid crank
 ``L1 = 0.15 m`` driven at 150 rad/s; flexible connecting rod ``L2 = 0.30 m``,
 steel square 8 mm x 8 mm (E = 2.0e11 Pa, rho = 7870 kg/m^3); slider point mass
 0.075552 kg on the line of the crank pivot; no gravity.

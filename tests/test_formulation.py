@@ -1,4 +1,4 @@
-"""The inertial-frame (global) equations equal the link-frame equations of DESIGN.md section 2.
+"""The inertial-frame (global) equations equal the link-frame equations of docs/theory.md section 2.
 
 The link-frame equation of a frame element is
 ``m u'' + 2 w m_s u' + (k + a m_s - w^2 m_t) u = f`` with local DOFs ``u = T(theta) x``.

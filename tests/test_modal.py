@@ -1,4 +1,4 @@
-"""Natural frequencies against the reference data of ../shared/references (sections 1-3)."""
+"""Natural frequencies against the reference data of docs/references.md (sections 1-3)."""
 
 import math
 
