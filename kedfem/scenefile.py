@@ -442,7 +442,10 @@ def _mechanism(ctx: _Ctx, data: Mapping):
     try:
         mech = module.build(**params)
     except KedError as e:
-        raise ctx.error("mechanism", str(e)) from None
+        # point at the parameter the builder names ("coupler must be a length > 0 m"), else the table
+        msg = str(e)
+        named = [k for k in params if re.search(rf"\b{re.escape(k)}\b must", msg)]
+        raise ctx.error(f"mechanism.{named[0]}" if named else "mechanism", msg) from None
     except Exception as e:  # noqa: BLE001 - a builder's own failure on user values is a scene error
         log.debug("mechanism %s rejected %r", key, params, exc_info=True)
         raise ctx.error("mechanism", f"{key} cannot be built with these parameters "

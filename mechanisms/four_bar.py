@@ -65,6 +65,9 @@ def build(ground: float = 0.254, crank: float = 0.108, coupler: float = 0.2794,
     flexible_crank : bool
         False makes the crank rigid.
     """
+    for name, v in (("ground", ground), ("crank", crank), ("coupler", coupler), ("follower", follower)):
+        if not v > 0:
+            raise kf.InputError(f"four_bar: {name} must be a length > 0 m, got {v!r}")
     mat = kf.Material(E=E, rho=rho)
     # the published A and EI are those of 25.4 mm wide rectangular strips (h = sqrt(12 I / A):
     # 4.24 mm crank, 1.60 mm coupler and follower); the extreme fibre is at c = h / 2

@@ -62,6 +62,10 @@ def build(speed: float = 2 * math.pi * 5, elements: int = 4, crank: float = 0.10
     crank_angle : float
         Crank angle of the reference configuration [rad].
     """
+    for name, v in (("crank", crank), ("coupler", coupler), ("ground", ground), ("arm_b", arm_b),
+                    ("arm_c", arm_c), ("link", link), ("rocker", rocker)):
+        if not v > 0:
+            raise kf.InputError(f"six_bar: {name} must be a length > 0 m, got {v!r}")
     O2, O4 = np.array([0.0, 0.0]), np.array([ground, 0.0])
     A = crank * np.array([math.cos(crank_angle), math.sin(crank_angle)])
     B = _circle_intersection(A, coupler, O4, arm_b)

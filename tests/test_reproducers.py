@@ -72,3 +72,15 @@ def test_render_frame_of_a_series_index_says_what_to_do(tmp_path):
     pytest.importorskip("pyvista")
     with pytest.raises(kf.InputError, match="cannot read|no points"):
         render.render_frame(bad, tmp_path / "y.png")
+
+
+def test_a_zero_length_link_in_a_scene_file_is_named_at_its_line(tmp_path):
+    """`coupler = 0` read 'cannot be assembled at the reference crank_angle', located at the table."""
+    from kedfem import scenefile as sf
+    p = tmp_path / "s.toml"
+    p.write_text('steps = 24\n[mechanism]\nname = "four_bar"\ncoupler = 0\n')
+    with pytest.raises(sf.SceneFileError, match="coupler must be a length > 0") as ei:
+        sf.load_scene(p)
+    assert ei.value.key == "mechanism.coupler" and ei.value.line == 4
+    with pytest.raises(kf.InputError, match="arm_b must be a length > 0"):
+        mechanisms.build("six_bar", arm_b=-0.1)
