@@ -46,57 +46,35 @@ EXIT_STRICT = 3
 
 
 # ------------------------------------------------------------ arg helpers
+def _number(parse, check, requirement: str, unit: str = ""):
+    """An argparse type: ``parse`` (int or float) the text, then ``check`` the value."""
+    kind = "an integer" if parse is int else "a number"
+
+    def f(s: str):
+        try:
+            v = parse(s)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be {kind}{unit}, got {s!r}") from None
+        if not check(v):
+            raise argparse.ArgumentTypeError(f"must {requirement}, got {s!r}")
+        return v
+    return f
+
+
 def _steps_arg(s: str) -> int:
     from .scene import MAX_STEPS
-    try:
-        v = int(s)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer, got {s!r}") from None
-    if not 3 <= v <= MAX_STEPS:
-        raise argparse.ArgumentTypeError(f"must lie in 3 .. {MAX_STEPS} (see kedfem.scene.MAX_STEPS), got {v}")
-    return v
+    return _number(int, lambda v: 3 <= v <= MAX_STEPS,
+                   f"lie in 3 .. {MAX_STEPS} (see kedfem.scene.MAX_STEPS)")(s)
 
 
-def _rtol_arg(s: str) -> float:
-    try:
-        v = float(s)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number, got {s!r}") from None
-    if not 0 < v < 1:
-        raise argparse.ArgumentTypeError(f"must lie in (0, 1) (a relative error, e.g. 1e-3), got {s!r}")
-    return v
-
-
-def _speed_arg(s: str) -> float:
-    try:
-        v = float(s)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number [rev/min], got {s!r}") from None
-    if not math.isfinite(v) or v == 0:
-        raise argparse.ArgumentTypeError(f"must be a finite nonzero speed [rev/min], got {s!r}")
-    return v
-
-
-def _positive_float(s: str) -> float:
-    try:
-        v = float(s)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number, got {s!r}") from None
-    if not (math.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {s!r}")
-    return v
+_rtol_arg = _number(float, lambda v: 0 < v < 1, "lie in (0, 1) (a relative error, e.g. 1e-3)")
+_speed_arg = _number(float, lambda v: math.isfinite(v) and v != 0, "be a finite nonzero speed [rev/min]",
+                     " [rev/min]")
+_positive_float = _number(float, lambda v: math.isfinite(v) and v > 0, "be a finite number > 0")
 
 
 def _int_range(lo: int, hi: int):
-    def f(s: str) -> int:
-        try:
-            v = int(s)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"must be an integer, got {s!r}") from None
-        if not lo <= v <= hi:
-            raise argparse.ArgumentTypeError(f"must lie in {lo} .. {hi}, got {v}")
-        return v
-    return f
+    return _number(int, lambda v: lo <= v <= hi, f"lie in {lo} .. {hi}")
 
 
 def _scheme_names():

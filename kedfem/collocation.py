@@ -40,7 +40,6 @@ The response between element ends is the collocation polynomial of degree
 from __future__ import annotations
 
 import logging
-import math
 import time
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -474,15 +473,10 @@ def solve(M, C, K, Q, period: float, scheme: str = "radau3", *, n: int | None = 
     InputError, SingularMassError, ResonanceError
         As :func:`kedfem.periodic.solve`.
     """
-    from .periodic import _blas_one_thread
+    from .periodic import _blas_one_thread, check_period
     t_start = time.perf_counter()
     tab = tableau(scheme)
-    try:
-        period = float(period)
-    except (TypeError, ValueError):
-        raise InputError(f"period must be a positive finite number, got {period!r}") from None
-    if not (math.isfinite(period) and period > 0):
-        raise InputError(f"period must be a positive finite number, got {period!r}")
+    period = check_period(period)
     if not (isinstance(memory_budget, (int, float, np.integer, np.floating)) and memory_budget > 0):
         raise InputError(f"memory_budget must be a positive number of bytes, got {memory_budget!r}")
     Ms, Cs, Ks, Qs = (_Source("M", M, True), _Source("C", C, True), _Source("K", K, True),

@@ -58,6 +58,18 @@ _SHAT[3:5, 3:5] = _S
 _SHAT_T = _SHAT.T.copy()
 
 
+def _torsional_moment(mo: Motion, t):
+    """Moment [N m] (nt,) of a torsional spring over the rigid-body motion, on ``member`` (index i,
+    taken negative) and ``other`` (index k or None, taken positive)."""
+    i = mo.member_names.index(t.member)
+    rel = mo.theta[:, i] - mo.theta_ref[i]
+    k = None
+    if t.other is not None:
+        k = mo.member_names.index(t.other)
+        rel = rel - (mo.theta[:, k] - mo.theta_ref[k])
+    return i, k, t.preload + t.k * rel
+
+
 # --------------------------------------------------------------------- damping
 @dataclass(frozen=True)
 class Rayleigh:
@@ -329,14 +341,9 @@ class Assembler:
             if s.b is not None:
                 loads[:, jb] += F[:, None] * n
         for t in self.mech.torsional_springs.values():
-            i = mo.member_names.index(t.member)
-            rel = mo.theta[:, i] - mo.theta_ref[i]
-            if t.other is not None:
-                k = mo.member_names.index(t.other)
-                rel = rel - (mo.theta[:, k] - mo.theta_ref[k])
-            Mt = t.preload + t.k * rel
+            i, k, Mt = _torsional_moment(mo, t)
             moments[:, i] -= Mt
-            if t.other is not None:
+            if k is not None:
                 moments[:, k] += Mt
 
     def _rigid_loads(self, mo, loads):
@@ -522,12 +529,7 @@ class Assembler:
                 for k, (kind, t) in enumerate(items):
                     if kind != "spring":
                         continue
-                    i = mo.member_names.index(t.member)
-                    rel = mo.theta[:, i] - mo.theta_ref[i]
-                    if t.other is not None:
-                        o = mo.member_names.index(t.other)
-                        rel = rel - (mo.theta[:, o] - mo.theta_ref[o])
-                    Mt = t.preload + t.k * rel
+                    _i, _o, Mt = _torsional_moment(mo, t)
                     Q[:, k, 0] = -Mt
                     Q[:, k, 1] = Mt
                 acc.add("tspring", "Q", Q)

@@ -10,16 +10,25 @@ from .errors import InputError
 __all__ = ["Material", "Section"]
 
 
-def _positive(owner: str, name: str, value) -> float:
+def real(owner: str, name: str, value, *, positive: bool = False, nonneg: bool = False) -> float:
+    """``value`` as a finite float, or an :class:`InputError` naming ``owner`` and ``name``."""
     if isinstance(value, bool):
         raise InputError(f"{owner}: {name} must be a number, got {value!r}")
     try:
         v = float(value)
     except (TypeError, ValueError):
         raise InputError(f"{owner}: {name} must be a number, got {value!r}") from None
-    if not math.isfinite(v) or v <= 0.0:
-        raise InputError(f"{owner}: {name} must be finite and > 0, got {value!r}")
+    if not math.isfinite(v):
+        raise InputError(f"{owner}: {name} must be finite, got {value!r}")
+    if positive and v <= 0.0:
+        raise InputError(f"{owner}: {name} must be > 0, got {value!r}")
+    if nonneg and v < 0.0:
+        raise InputError(f"{owner}: {name} must be >= 0, got {value!r}")
     return v
+
+
+def _positive(owner: str, name: str, value) -> float:
+    return real(owner, name, value, positive=True)
 
 
 @dataclass(frozen=True)

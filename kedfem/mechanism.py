@@ -20,7 +20,7 @@ import networkx as nx
 import numpy as np
 
 from .errors import InputError
-from .materials import Material, Section
+from .materials import Material, Section, real
 
 __all__ = [
     "Mechanism",
@@ -48,20 +48,7 @@ def _vec2(owner: str, name: str, value) -> tuple[float, float]:
     return (float(arr[0]), float(arr[1]))
 
 
-def _number(owner: str, name: str, value, *, positive=False, nonneg=False) -> float:
-    if isinstance(value, bool):
-        raise InputError(f"{owner}: {name} must be a number, got {value!r}")
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{owner}: {name} must be a number, got {value!r}") from None
-    if not math.isfinite(v):
-        raise InputError(f"{owner}: {name} must be finite, got {value!r}")
-    if positive and v <= 0.0:
-        raise InputError(f"{owner}: {name} must be > 0, got {value!r}")
-    if nonneg and v < 0.0:
-        raise InputError(f"{owner}: {name} must be >= 0, got {value!r}")
-    return v
+_number = real  # the finite-number check of materials.py
 
 
 @dataclass(frozen=True)

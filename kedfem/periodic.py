@@ -510,6 +510,17 @@ _POOL = None
 _BLAS = None
 
 
+def check_period(period) -> float:
+    """``period`` [s] as a positive finite float, or an :class:`InputError`."""
+    try:
+        period = float(period)
+    except (TypeError, ValueError):
+        raise InputError(f"period must be a positive finite number, got {period!r}") from None
+    if not (math.isfinite(period) and period > 0):
+        raise InputError(f"period must be a positive finite number, got {period!r}")
+    return period
+
+
 def _blas_one_thread():
     """Context limiting BLAS to one thread (threadpoolctl if available)."""
     global _BLAS
@@ -729,12 +740,7 @@ def _solve(M, C, K, Q, period: float, hold: str = "zoh", *, n: int | None = None
         raise InputError(f"unknown method {method!r}; valid methods: {', '.join(METHODS)}")
     if approximant not in ("taylor", "pade"):
         raise InputError(f"unknown approximant {approximant!r}; valid: taylor, pade")
-    try:
-        period = float(period)
-    except (TypeError, ValueError):
-        raise InputError(f"period must be a positive finite number, got {period!r}") from None
-    if not (math.isfinite(period) and period > 0):
-        raise InputError(f"period must be a positive finite number, got {period!r}")
+    period = check_period(period)
     if delta is not None:
         delta = float(delta)
         if not (math.isfinite(delta) and 0 < delta < 1):
