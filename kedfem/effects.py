@@ -58,6 +58,22 @@ _SHAT[3:5, 3:5] = _S
 _SHAT_T = _SHAT.T.copy()
 
 
+def _spring_extension(mech, mo: Motion, s) -> np.ndarray:
+    """Extension [m] (nt,) of a linear spring along its axis over the rigid-body motion."""
+    n = np.asarray(s.axis)
+    d = (mo.r[:, mo.joint_names.index(s.a)] - np.asarray(mech.joints[s.a].at)) @ n
+    if s.b is not None:
+        d = d - (mo.r[:, mo.joint_names.index(s.b)] - np.asarray(mech.joints[s.b].at)) @ n
+    return d
+
+
+def _rigid_friction(mo: Motion, f) -> np.ndarray:
+    """Friction force [N] (nt, 2) on the rigid-body velocity of its joint (tanh-regularised sign)."""
+    n = np.asarray(f.axis)
+    vrel = mo.v[:, mo.joint_names.index(f.joint)] @ n - f.reference_speed
+    return -(f.force * np.tanh(vrel / f.smoothing))[:, None] * n
+
+
 def _torsional_moment(mo: Motion, t):
     """Moment [N m] (nt,) of a torsional spring over the rigid-body motion, on ``member`` (index i,
     taken negative) and ``other`` (index k or None, taken positive)."""
@@ -330,16 +346,12 @@ class Assembler:
 
     def _spring_rigid_forces(self, mo, loads, moments):
         for s in self.mech.springs.values():
-            ja = mo.joint_names.index(s.a)
             n = np.asarray(s.axis)
-            d = (mo.r[:, ja] - np.asarray(self.mech.joints[s.a].at)) @ n
-            if s.b is not None:
-                jb = mo.joint_names.index(s.b)
-                d = d - (mo.r[:, jb] - np.asarray(self.mech.joints[s.b].at)) @ n
+            d = _spring_extension(self.mech, mo, s)
             F = s.preload + s.k * d + s.k3 * d**3
-            loads[:, ja] -= F[:, None] * n
+            loads[:, mo.joint_names.index(s.a)] -= F[:, None] * n
             if s.b is not None:
-                loads[:, jb] += F[:, None] * n
+                loads[:, mo.joint_names.index(s.b)] += F[:, None] * n
         for t in self.mech.torsional_springs.values():
             i, k, Mt = _torsional_moment(mo, t)
             moments[:, i] -= Mt
@@ -350,10 +362,7 @@ class Assembler:
         for ld in self.mech.loads.values():
             loads[:, mo.joint_names.index(ld.joint)] += np.asarray(ld.force)
         for f in self.mech.frictions.values():
-            j = mo.joint_names.index(f.joint)
-            n = np.asarray(f.axis)
-            vrel = mo.v[:, j] @ n - f.reference_speed
-            loads[:, j] -= (f.force * np.tanh(vrel / f.smoothing))[:, None] * n
+            loads[:, mo.joint_names.index(f.joint)] += _rigid_friction(mo, f)
 
     def beam_axial_kinetostatic(self) -> np.ndarray:
         """Mean kinetostatic axial force per beam element, shape (n, n_el) [N]."""
@@ -494,12 +503,7 @@ class Assembler:
         g = self.model.groups["spring"]
         d = np.zeros((mo.n, g.n))
         for k, s in enumerate(g.meta["items"]):
-            n = np.asarray(s.axis)
-            ja = mo.joint_names.index(s.a)
-            d[:, k] = (mo.r[:, ja] - np.asarray(self.mech.joints[s.a].at)) @ n
-            if s.b is not None:
-                jb = mo.joint_names.index(s.b)
-                d[:, k] -= (mo.r[:, jb] - np.asarray(self.mech.joints[s.b].at)) @ n
+            d[:, k] = _spring_extension(self.mech, mo, s)
         return d
 
     def _spring_terms(self, mo, acc: _Acc):
@@ -543,10 +547,7 @@ class Assembler:
             if isinstance(it, Load):
                 Q[:, k] = it.force
             elif it.follows == "rigid":
-                j = mo.joint_names.index(it.joint)
-                n = np.asarray(it.axis)
-                vrel = mo.v[:, j] @ n - it.reference_speed
-                Q[:, k] = -(it.force * np.tanh(vrel / it.smoothing))[:, None] * n
+                Q[:, k] = _rigid_friction(mo, it)
         acc.add("load", "Q", Q)
 
     # ----------------------------------------------------------- rigid geometry
