@@ -45,10 +45,11 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, ".."))
 
 import kedfem as kf  # noqa: E402
+from kedfem.effects import LINEAR_EFFECTS  # noqa: E402
 import mechanisms  # noqa: E402
 from kedfem.scene import ACCURACY_PRESETS  # noqa: E402
 
-LINEAR = ("inertia", "coupling", "axial_stiffening")
+LINEAR = LINEAR_EFFECTS
 
 
 def cases(quick: bool):

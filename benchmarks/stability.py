@@ -41,9 +41,10 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, ".."))
 
 import kedfem as kf  # noqa: E402
+from kedfem.effects import LINEAR_EFFECTS  # noqa: E402
 import mechanisms  # noqa: E402
 
-LINEAR = ("inertia", "coupling", "axial_stiffening")
+LINEAR = LINEAR_EFFECTS
 RPM = 2 * math.pi / 60
 
 

@@ -46,7 +46,7 @@ from .kinetostatics import JointForces, kinetostatics, link_axial_force, member_
 from .mechanism import Load
 from .modal_damping import modal_damping
 
-__all__ = ["EFFECTS", "Effect", "check_effects", "Rayleigh", "ModalDamping", "Assembler",
+__all__ = ["EFFECTS", "LINEAR_EFFECTS", "Effect", "check_effects", "Rayleigh", "ModalDamping", "Assembler",
            "slice_motion", "SystemTerms"]
 
 log = logging.getLogger(__name__)
@@ -150,6 +150,10 @@ class Effect:
             return any(f.follows == "total" for f in mech.frictions.values())
         return False
 
+
+#: The linear KED effect set: rigid-body inertia, the rigid-elastic coupling and the links'
+#: stiffening by their kinetostatic axial forces.
+LINEAR_EFFECTS = ("inertia", "coupling", "axial_stiffening")
 
 EFFECTS: dict[str, Effect] = {e.name: e for e in (
     Effect("inertia", "rigid-body inertial loads -M r0''"),

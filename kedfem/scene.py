@@ -13,8 +13,8 @@ from .mechanism import Mechanism
 
 __all__ = ["Scene", "HOLDS", "NONLINEAR_METHODS", "ACCURACY_PRESETS", "MAX_STEPS"]
 
-HOLDS = ("zoh", "foh", "magnus2")
-NONLINEAR_METHODS = ("fixed-point", "relaxation", "anderson")
+from .nonlinear import NONLINEAR_METHODS  # noqa: E402  (one definition each, re-exported here)
+from .periodic import HOLDS  # noqa: E402
 #: Largest number of time elements per cycle a scene may ask for (or a
 #: tolerance-driven solve may reach): the cost grows linearly with it, and
 #: every shipped mechanism converges to 1e-5 far below it.

@@ -76,7 +76,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from .effects import EFFECTS, ModalDamping, Rayleigh
+from .effects import EFFECTS, LINEAR_EFFECTS, ModalDamping, Rayleigh
 from .errors import InputError, KedError
 from .scene import ACCURACY_PRESETS, HOLDS, MAX_STEPS, NONLINEAR_METHODS, Scene
 
@@ -149,7 +149,7 @@ class Preset:
     solver: tuple[tuple[str, Any], ...] = ()
 
 
-_LINEAR = ("inertia", "coupling", "axial_stiffening")
+_LINEAR = LINEAR_EFFECTS
 _ACTUAL_AXIAL = _LINEAR + ("geometric_nonlinearity",)
 
 #: Per-mechanism defaults of ``effects``, ``damping`` and the solver knobs (the
