@@ -893,13 +893,9 @@ class PeriodicResult:
                 K = K + dK
         k = min(n_modes, self.model.n_dof)
         fm = eig_frequencies(S.M, K, k)
-        N = self.model.n_dof
+        from .periodic import _state_matrix
         Minv = np.linalg.inv(S.M)
-        F = np.zeros((S.M.shape[0], 2 * N, 2 * N))
-        F[:, :N, N:] = np.eye(N)
-        F[:, N:, :N] = -Minv @ K
-        F[:, N:, N:] = -Minv @ S.C
-        lam = np.linalg.eigvals(F)
+        lam = np.linalg.eigvals(_state_matrix(Minv @ K, Minv @ S.C))
         # oscillatory eigenvalues (one of each conjugate pair), lowest |lambda| first
         tol = 1e-9 * np.abs(lam).max(axis=1, keepdims=True)
         mag = np.where(lam.imag > tol, np.abs(lam), np.inf)
