@@ -114,6 +114,19 @@ class GroupMap:
     p1: np.ndarray | None
     p2: np.ndarray | None
 
+    def apply(self, U: np.ndarray, sl=slice(None), *, offset: bool = False, E=None) -> np.ndarray:
+        """Element DOFs ``E q`` (and ``+ p`` with ``offset``) of DOF histories ``U`` (nt, N).
+
+        ``E``: another map of the same layout (e.g. ``E1`` for the transport
+        term of the rates). Returns shape (nt, n_el, d) for the elements ``sl``.
+        """
+        E = self.E if E is None else E
+        Up = np.concatenate([U, np.zeros((U.shape[0], 1))], axis=1)  # column N: the padding
+        x = (E[:, sl] @ Up[:, self.cols[sl]][..., None])[..., 0]
+        if offset and self.p is not None:
+            x = x + self.p[:, sl]
+        return x
+
 
 @dataclass(frozen=True)
 class BeamData:

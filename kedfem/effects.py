@@ -810,17 +810,13 @@ class Assembler:
         carry, and the group map; arrays (nt, n_el, d).
         """
         gm = self._state_map(gname, mo)
-        Up = np.concatenate([U, np.zeros((U.shape[0], 1))], axis=1)
-        qe = Up[:, gm.cols]  # (nt, n_el, m)
-        xq = (gm.E @ qe[..., None])[..., 0]
+        xq = gm.apply(U)  # (nt, n_el, d)
         x = xq + gm.p if gm.p is not None else xq
         xd = None
         if V is not None:
-            Vp = np.concatenate([V, np.zeros((V.shape[0], 1))], axis=1)
-            ve = Vp[:, gm.cols]
-            xd = (gm.E @ ve[..., None])[..., 0]
+            xd = gm.apply(V)
             if gm.E1 is not None:
-                xd = xd + (gm.E1 @ qe[..., None])[..., 0]
+                xd = xd + gm.apply(U, E=gm.E1)
             if gm.p1 is not None:
                 xd = xd + gm.p1
         return x, xd, xq, gm
@@ -958,8 +954,7 @@ class Assembler:
         g = self.model.groups["load"]
         items = g.meta["items"]
         x, xd, _xq, gm = self.element_state("load", mo, U, V)
-        Vp = np.concatenate([V, np.zeros((V.shape[0], 1))], axis=1)
-        xdq = (gm.E @ Vp[:, gm.cols][..., None])[..., 0]  # the part of x' carried by q'
+        xdq = gm.apply(V)  # the part of x' carried by q'
         Qx = np.zeros(x.shape)
         Cx = np.zeros(x.shape + (x.shape[-1],))
         for k, it in enumerate(items):

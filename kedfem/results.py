@@ -368,13 +368,7 @@ class PeriodicResult:
         if key in self._cache:
             return self._cache[key]
         sl = self.model.link_elements(link)
-        gm = self._beam_map()
-        Up = np.concatenate([self.U, np.zeros((self.n, 1))], axis=1)
-        cols = gm.cols[sl]
-        E = gm.E[:, sl]
-        x = (E @ Up[:, cols][..., None])[..., 0]
-        if gm.p is not None:
-            x = x + gm.p[:, sl]
+        x = self._beam_map().apply(self.U, sl, offset=True)
         th = self.motion.angle(link)
         T = el.rotation_blocks(th)[:, None]
         d = (T @ x[..., None])[..., 0]
@@ -613,11 +607,9 @@ class PeriodicResult:
         lk = self._link(link)
         sl = self.model.link_elements(link)
         gm = self._beam_map()
-        U = self.U if U is None else np.broadcast_to(np.asarray(U, float), self.U.shape)
-        Up = np.concatenate([U, np.zeros((self.n, 1))], axis=1)
-        x = (gm.E[:, sl] @ Up[:, gm.cols[sl]][..., None])[..., 0]
-        if gm.p is not None and U is self.U:
-            x = x + gm.p[:, sl]
+        own = U is None
+        U = self.U if own else np.broadcast_to(np.asarray(U, float), self.U.shape)
+        x = gm.apply(U, sl, offset=own)
         out = np.empty((self.n, lk.elements + 1, 2))
         out[:, :-1] = x[:, :, 0:2]
         out[:, -1] = x[:, -1, 3:5]
