@@ -75,7 +75,10 @@ def test_effect_switches_change_answer_in_expected_direction():
     base = peak(kf.solve(slider_crank_scene(elements=4, steps=180)))[0]
     stiff = peak(kf.solve(slider_crank_scene(elements=4, steps=180,
                                              effects=SC_EFF + ("axial_stiffening",))))[0]
-    assert abs(stiff) != abs(base)
+    # against the geometrically exact model (ANCF, benchmarks/exact_comparison.py, beta = 3e-5 s):
+    # peak 1.5463 mm; the kinetostatic axial force's stiffening brings the linear model to it
+    exact = 1.5463e-3
+    assert abs(abs(stiff) / exact - 1) < 0.01 and abs(base) / exact - 1 > 0.04, (base, stiff)
     # rotating blade: axial stiffening raises, centripetal coupling lowers the bending frequency
     m = kf.Mechanism("blade")
     m.ground("O", at=(0, 0), clamped=True)
@@ -150,7 +153,7 @@ def test_speed_override_scales_all_drives():
     m = mechanisms.build("mould_oscillator")
     sc = kf.Scene(m, speed=10.0, effects=("inertia",))
     assert [d.speed for d in sc.mech.drives] == [10.0, 10.0]
-    assert [d.speed for d in m.drives] != [10.0, 10.0]
+    assert [d.speed for d in m.drives] == [d.speed for d in mechanisms.build("mould_oscillator").drives]
     assert sc.period == pytest.approx(2 * math.pi / 10.0)
 
 
