@@ -40,13 +40,13 @@ import scipy.sparse as sp
 
 from . import elements as el
 from .assembly import FEModel
-from .errors import InputError
+from .errors import InputError, KedError
 from .kinematics import Motion
 from .kinetostatics import JointForces, kinetostatics, link_axial_force, member_centre
 from .mechanism import Load
 from .modal_damping import modal_damping
 
-__all__ = ["EFFECTS", "LINEAR_EFFECTS", "Effect", "check_effects", "Rayleigh", "ModalDamping", "Assembler",
+__all__ = ["EFFECTS", "LINEAR_EFFECTS", "Effect", "register_effect", "check_effects", "Rayleigh", "ModalDamping", "Assembler",
            "slice_motion", "SystemTerms"]
 
 log = logging.getLogger(__name__)
@@ -135,10 +135,26 @@ class ModalDamping:
 # --------------------------------------------------------------------- registry
 @dataclass(frozen=True)
 class Effect:
-    """Description of an effect in the registry."""
+    """An effect of the registry: its name, what it adds, and (for effects in their own
+    module) its terms.
+
+    The built-in effects are assembled by :class:`Assembler` (their terms live
+    with the element groups they act on). An effect written in its own module
+    subclasses this and overrides :meth:`terms`; it joins the registry with
+    :func:`register_effect` (``kedfem/joint_torque.py`` is the worked example).
+    """
 
     name: str
     adds: str
+
+    def terms(self, asm: "Assembler", motion: Motion) -> dict | None:
+        """q-space terms at the instants of ``motion`` (a slice of the cycle).
+
+        Returns ``None`` (the built-in effects) or a dict with any of ``"M"``,
+        ``"C"``, ``"K"`` (nt, N, N) and ``"Q"`` (nt, N) [SI], added to the
+        assembled system; ``asm.model`` is the :class:`kedfem.assembly.FEModel`.
+        """
+        return None
 
     def state_dependent(self, mech) -> bool:
         """True if this effect makes the equations depend on the elastic state."""
@@ -164,6 +180,19 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
     Effect("springs", "spring forces of the rigid-body motion and preload; cubic spring laws"),
     Effect("loads", "declared external loads and friction"),
 )}
+
+
+def register_effect(effect: Effect) -> Effect:
+    """Add an effect (an :class:`Effect` subclass instance with its own :meth:`Effect.terms`)
+    to the registry under ``effect.name``, so that scenes and scene files can name it."""
+    if not isinstance(effect, Effect) or type(effect).terms is Effect.terms:
+        raise InputError(f"register_effect: {effect!r} is not an Effect with its own terms()")
+    if not (isinstance(effect.name, str) and effect.name.isidentifier()):
+        raise InputError(f"register_effect: the name must be an identifier, got {effect.name!r}")
+    if effect.name in EFFECTS:
+        raise InputError(f"register_effect: an effect {effect.name!r} is already registered")
+    EFFECTS[effect.name] = effect
+    return effect
 
 
 def check_effects(effects) -> tuple[str, ...]:
@@ -686,6 +715,15 @@ class Assembler:
                 self.model.scatter_vector(gname, out["Q"], out=Q)
         if "axial_stiffening" in self.has and self.model.rigid_groups:
             tot["K"] += self._rigid_geometric(mo, idx)
+        for name in self.has:  # effects in their own modules (register_effect)
+            extra = EFFECTS[name].terms(self, mo) if name in EFFECTS else None
+            for key, val in (extra or {}).items():
+                if key == "Q":
+                    Q += val
+                elif key in ("M", "C", "K"):
+                    tot[key] += val
+                else:
+                    raise KedError(f"effect {name!r}: terms() returned an unknown key {key!r}")
         if field is not None:
             tot["C"] += field.at(mo.t)
         elif self.damping is not None:
