@@ -34,6 +34,7 @@ each instant (see ``docs/solver.md``).
 
 from __future__ import annotations
 
+import abc
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -105,7 +106,7 @@ def _with_state_terms(C, K, Q, dC, dK, dQ):
     return (C if dC is None else C + dC, K if dK is None else K + dK, Q if dQ is None else Q + dQ)
 
 
-class Scheme:
+class Scheme(abc.ABC):
     """Contract of a time discretisation (see the module docstring).
 
     Attributes
@@ -138,13 +139,14 @@ class Scheme:
         """Time elements of the next finer level (about twice ``n``)."""
         return 2 * n
 
+    @abc.abstractmethod
     def instants(self, n: int, period: float, edges=None) -> np.ndarray:
         """Instants (n * stages,) [s] where ``M, C, K, Q`` are needed, element by element.
 
         ``edges`` (n + 1,) [s]: non-uniform elements (schemes with :attr:`graded`).
         """
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def solve(self, M, C, K, Q, period: float, n: int, *, dC=None, dK=None, dQ=None,
               edges=None, **options) -> Discrete:
         """Periodic solution from data sampled at :meth:`instants`.
@@ -165,7 +167,6 @@ class Scheme:
         **options
             ``delta``, ``memory_budget``, ... of the underlying solver.
         """
-        raise NotImplementedError
 
     def check_elements(self, n: int) -> int:
         """Validate a number of time elements."""

@@ -432,27 +432,22 @@ class Model:
 
         ``q`` may be (ndof,) or (nt, ndof); returns (..., len(s), 2).
         """
+        shapes, qq = self._element_fields(q, link, s)
+        return np.einsum("sk,...skj->...sj", shapes[deriv][0], qq)
+
+    def _element_fields(self, q, link, s):
+        """Hermite shapes (N, N', N'') at arc lengths ``s`` and the element coordinates (..., len(s), 4, 2)."""
         lk = self.links[link]
         s = np.atleast_1d(np.asarray(s, float))
         Le = lk.length / lk.n_el
         e = np.clip((s // Le).astype(int), 0, lk.n_el - 1)
-        xi = s / Le - e
-        N, N1, _ = hermite(xi, [Le])
-        Nsel = (N if deriv == 0 else N1)[0]           # (len(s), 4)
+        shapes = hermite(s / Le - e, [Le])
         dofs = np.stack([lk.nodes[e], lk.nodes[e + 1]], 1).reshape(len(s), 8)  # (len(s), 8)
-        qq = np.asarray(q)[..., dofs].reshape(q.shape[:-1] + (len(s), 4, 2))
-        return np.einsum("sk,...skj->...sj", Nsel, qq)
+        return shapes, np.asarray(q)[..., dofs].reshape(q.shape[:-1] + (len(s), 4, 2))
 
     def link_strain(self, q, link, s):
         """Axial strain and curvature at arc lengths ``s`` (q of shape (nt, ndof))."""
-        lk = self.links[link]
-        s = np.atleast_1d(np.asarray(s, float))
-        Le = lk.length / lk.n_el
-        e = np.clip((s // Le).astype(int), 0, lk.n_el - 1)
-        xi = s / Le - e
-        _, N1, N2 = hermite(xi, [Le])
-        dofs = np.stack([lk.nodes[e], lk.nodes[e + 1]], 1).reshape(len(s), 8)
-        qq = np.asarray(q)[..., dofs].reshape(q.shape[:-1] + (len(s), 4, 2))
+        (_, N1, N2), qq = self._element_fields(q, link, s)
         a = np.einsum("sk,...skj->...sj", N1[0], qq)
         bb = np.einsum("sk,...skj->...sj", N2[0], qq)
         n = np.hypot(a[..., 0], a[..., 1])
