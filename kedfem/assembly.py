@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from .errors import InputError
+from .errors import InputError, did_you_mean
 from .kinematics import Motion
 from .mechanism import Mechanism
 
@@ -1038,12 +1038,12 @@ class FEModel:
                              shape=(self.n_dof, self.n_dof)).tocsr()
 
     # ---------------------------------------------------------------- labels
-    def dof_index(self, label: str) -> int:
-        """Index of the DOF with ``label`` (see :attr:`dof_labels`)."""
+    def dof_index(self, label: str, owner: str = "") -> int:
+        """Index of the DOF with ``label`` (see :attr:`dof_labels`); ``owner`` prefixes the error."""
         try:
             return self.dof_labels.index(label)
         except ValueError:
-            raise InputError(f"unknown DOF label '{label}'") from None
+            raise InputError(f"{owner}unknown DOF label {label!r}{did_you_mean(label, self.dof_labels)}") from None
 
     def link_elements(self, link: str) -> slice:
         """Slice of the beam elements of a flexible link."""

@@ -28,7 +28,7 @@ import types
 from importlib.metadata import entry_points
 from pathlib import Path
 
-from .errors import InputError
+from .errors import InputError, did_you_mean
 
 __all__ = ["GROUP", "available", "get", "build", "register", "is_reference"]
 
@@ -160,10 +160,7 @@ def get(name: str):
     else:
         eps = _entry_points()
         if key not in eps:
-            from difflib import get_close_matches
-            close = get_close_matches(key, available(), n=1)
-            hint = f" (did you mean {close[0]!r}?)" if close else ""
-            raise InputError(f"unknown mechanism {name!r}{hint}; available: {', '.join(available())}, or "
+            raise InputError(f"unknown mechanism {name!r}{did_you_mean(key, available())}; available: {', '.join(available())}, or "
                              f"'package.module:function' for a builder of your own")
         out = _load_entry(key, eps[key])
     _LOADED[key] = out

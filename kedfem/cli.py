@@ -334,11 +334,9 @@ def _check_dofs(scene, dofs) -> None:
     if not dofs:
         return
     from .assembly import FEModel
-    from .scenefile import _suggest
-    labels = FEModel(scene.mech, reduction=scene.reduction).dof_labels
+    model = FEModel(scene.mech, reduction=scene.reduction)
     for d in dofs:
-        if d not in labels:
-            raise InputError(f"plot: unknown DOF label {d!r}{_suggest(d, labels)}")
+        model.dof_index(d, owner="plot: ")
 
 
 def _check_out_dir(out_dir: Path) -> None:

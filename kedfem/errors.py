@@ -71,3 +71,10 @@ class OptionalDependencyError(KedError, ImportError):
 
 class AccuracyWarning(UserWarning):
     """A result's estimated time-discretisation error exceeds the scene's tolerance."""
+
+
+def did_you_mean(word, choices) -> str:
+    """`` (did you mean 'x'?)`` for the closest of ``choices`` to ``word``, or ``""``."""
+    import difflib
+    m = difflib.get_close_matches(str(word), [str(c) for c in choices], n=1, cutoff=0.6)
+    return f" (did you mean '{m[0]}'?)" if m else ""

@@ -113,9 +113,7 @@ def displacement(res, path, dofs: Sequence[str] | None = None) -> Path:
     """
     dofs = tuple(dofs) if dofs else auto_dofs(res)
     for d in dofs:
-        if d not in res.dof_labels:
-            from .scenefile import _suggest
-            raise InputError(f"plot: unknown DOF label {d!r}{_suggest(d, res.dof_labels)}")
+        res.model.dof_index(d, owner="plot: ")
     groups = [(u, [d for d in dofs if dof_unit(d) == u]) for u in ("m", "rad")]
     groups = [g for g in groups if g[1]]
     fig, axes = _figure(len(groups), 1, figsize=(8.0, 3.6 * len(groups)), sharex=True)

@@ -63,7 +63,6 @@ win over the presets.
 from __future__ import annotations
 
 import copy
-import difflib
 import inspect
 import itertools
 import logging
@@ -77,7 +76,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from .effects import EFFECTS, LINEAR_EFFECTS, ModalDamping, Rayleigh
-from .errors import InputError, KedError
+from .errors import InputError, KedError, did_you_mean
 from .scene import ACCURACY_PRESETS, HOLDS, MAX_STEPS, NONLINEAR_METHODS, Scene
 
 __all__ = ["SceneFileError", "Outputs", "Preset", "PRESETS", "SceneSpec", "load_scene", "load_sweep",
@@ -323,9 +322,7 @@ class _Ctx:
         return SceneFileError(reason, key=key, path=self.source, line=line)
 
 
-def _suggest(word: str, choices) -> str:
-    m = difflib.get_close_matches(str(word), [str(c) for c in choices], n=1, cutoff=0.6)
-    return f" (did you mean '{m[0]}'?)" if m else ""
+_suggest = did_you_mean
 
 
 def _typename(v) -> str:
