@@ -58,6 +58,16 @@ _SHAT[3:5, 3:5] = _S
 _SHAT_T = _SHAT.T.copy()
 
 
+def _objective_rates(D, T, Tt, w):
+    """A local damping ``D`` on an element's objective local rates ``T x' + T' x``.
+
+    Returns the global-frame damping ``T^T D T`` and the stiffness-like term
+    ``w T^T D S^T T`` of ``T' x = w S^T (T x)`` (translations turning with the
+    element at ``w``), so that a rigid rotation of the element is not damped.
+    """
+    return Tt @ D @ T, w * (Tt @ D @ _SHAT_T @ T)
+
+
 def _spring_extension(mech, mo: Motion, s) -> np.ndarray:
     """Extension [m] (nt,) of a linear spring along its axis over the rigid-body motion."""
     n = np.asarray(s.axis)
@@ -441,9 +451,9 @@ class Assembler:
             # stiffness-proportional damping of the elements' strain rates in their own
             # turning frame: f = beta k (T x' + T' x), T' x = w S^T (T x) on the translations
             # (the transport of the DOF maps follows in _transform); not of rigid rotation
-            kT = self._k_local @ T
-            acc.add("beam", "C", beta * (Tt @ kT))
-            acc.add("beam", "K", beta * w[..., None, None] * (Tt @ self._k_local @ _SHAT_T @ T))
+            Cb, Kb = _objective_rates(beta * self._k_local, T, Tt, w[..., None, None])
+            acc.add("beam", "C", Cb)
+            acc.add("beam", "K", Kb)
         else:
             acc.add("beam", "Ks", Tt @ self._k_local @ T)
         if "coupling" in self.has:
@@ -956,10 +966,8 @@ class Assembler:
 
     def _von_karman_damping(self, mo, T, Tt, D, gm, dC, dK, dQ):
         """``beta D`` (local, (nt, n_el, 6, 6)) on the objective local rates ``T x' + T' x``."""
-        D = self._objective_beta() * D
         w = mo.omega[:, self._beam_member][..., None, None]
-        Cx = Tt @ D @ T
-        Kx = w * (Tt @ D @ _SHAT_T @ T)  # T' x = w S^T (T x) on the translations
+        Cx, Kx = _objective_rates(self._objective_beta() * D, T, Tt, w)
         Qx = None
         if gm.p is not None:
             Qx = -((Cx @ gm.p1[..., None])[..., 0] + (Kx @ gm.p[..., None])[..., 0])

@@ -295,3 +295,45 @@ def fixed_point(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter
         warnings.warn(f"non-linear iteration ({method}): {message}", ConvergenceWarning, stacklevel=3)
     log.info("non-linear iteration (%s): %s", method, message)
     return sol, history, converged, message
+
+
+def fixed_point_or_anderson(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter: int = 50,
+                            method: str = "fixed-point", x0=None):
+    """:func:`fixed_point`, and when the plain iteration fails, Anderson acceleration from the start.
+
+    The plain iteration diverges where a resonance or buckling makes the state
+    terms amplify (an offset slider-crank with two flexible links, Rayleigh
+    beta = 1e-5 s); Anderson converges there. Other methods run as asked.
+
+    Returns
+    -------
+    solution, history, converged, method
+        ``history`` holds both attempts' changes; ``method`` is the one whose
+        solution is returned. The abandoned attempt's warnings are dropped.
+    """
+    import warnings as _w
+    if method != "fixed-point":
+        sol, hist, conv, _msg = fixed_point(G, n, N, period, eps=eps, max_iter=max_iter, method=method, x0=x0)
+        return sol, tuple(hist), conv, method
+    with _w.catch_warnings(record=True) as first:
+        _w.simplefilter("always")
+        sol, hist, conv, _msg = fixed_point(G, n, N, period, eps=eps, max_iter=max_iter, x0=x0)
+    if conv:
+        _reissue(first)
+        return sol, tuple(hist), conv, method
+    with _w.catch_warnings(record=True) as second:
+        _w.simplefilter("always")
+        sol2, hist2, conv2, _msg = fixed_point(G, n, N, period, eps=eps, max_iter=max_iter, method="anderson")
+    log.info("the fixed-point iteration did not converge; Anderson acceleration %s after %d solves",
+             "converged" if conv2 else "did not converge either", len(hist2))
+    if conv2:
+        _reissue(second)
+        return sol2, tuple(hist) + tuple(hist2), True, "anderson"
+    _reissue(first)
+    return sol, tuple(hist) + tuple(hist2), False, method
+
+
+def _reissue(caught) -> None:
+    import warnings as _w
+    for w in caught:
+        _w.warn_explicit(w.message, w.category, w.filename, w.lineno)

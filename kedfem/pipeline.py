@@ -31,7 +31,7 @@ from .effects import Assembler, ModalDamping
 from .errors import AccuracyWarning, InputError
 from .kinematics import Cycle, kinematics
 from .modal_damping import DampingField
-from .nonlinear import fixed_point
+from .nonlinear import fixed_point, fixed_point_or_anderson
 from .periodic import _blas_one_thread
 from .results import PeriodicResult, Sampler, Stability, Timings, stability_verdict
 from .scene import MAX_STEPS, Scene
@@ -295,24 +295,9 @@ class _Run:
                     # off to overflow, where each converges from the linear start
                     prev = self.levels[-1] if self.levels else None
                     x0 = prev.discrete.at(ti) if prev is not None and prev.converged else None
-                    method = sc.nonlinear_method
-                    d, hist, converged, _msg = fixed_point(
-                        G, ti.size, N, period, eps=eps, max_iter=sc.max_iter, method=method, x0=x0)
-                    if not converged and method == "fixed-point":
-                        # the plain iteration diverges where a resonance or buckling makes the
-                        # state terms amplify (an offset slider-crank with two flexible links,
-                        # beta = 1e-5 s); Anderson acceleration from the linear start converges there
-                        n_fp = len(caught)
-                        d2, hist2, conv2, _msg = fixed_point(
-                            G, ti.size, N, period, eps=eps, max_iter=sc.max_iter, method="anderson")
-                        log.info("%s: level n=%d: the fixed-point iteration did not converge; Anderson "
-                                 "acceleration %s after %d solves", sc.mech.name, n,
-                                 "converged" if conv2 else "did not converge either", len(hist2))
-                        if conv2:
-                            del caught[:n_fp]  # the abandoned attempt's warnings
-                            method = "anderson"
-                            d, converged = d2, conv2
-                        hist = tuple(hist) + tuple(hist2)
+                    d, hist, converged, method = fixed_point_or_anderson(
+                        G, ti.size, N, period, eps=eps, max_iter=sc.max_iter, method=sc.nonlinear_method,
+                        x0=x0)
                     iters, hist = len(hist), tuple(float(h) for h in hist)
                     if eps > sc.eps:  # what finish() needs to go on to the scene's eps
                         self._continue = (G, ti.size, N, period, method)

@@ -453,16 +453,22 @@ def _failed(p: SweepPoint, e: BaseException) -> PointResult:
     return PointResult(p.index, p.params, False, f"{type(e).__name__}: {' '.join(str(e).split())}")
 
 
-def _run_futures(submit, points, bar, wait, on_result=None):
-    futs = {}
-    for p in points:
-        futs[submit(p)] = p
-    out = {}
+def _run_futures(submit, points, bar, wait, on_result=None, out=None, lost=None):
+    """Submit every point, record each result as it completes; with ``lost`` (a list), points
+    whose pool broke (a worker died) go there instead of being recorded as failed."""
+    futs = {submit(p): p for p in points}
+    out = {} if out is None else out
     for fut in wait(list(futs)):
         p = futs[fut]
         try:
             r = fut.result()
-        except Exception as e:  # noqa: BLE001 - e.g. a worker process died
+        except cf.process.BrokenProcessPool as e:
+            if lost is None:
+                r = _failed(p, e)
+            else:
+                lost.append(p)
+                continue
+        except Exception as e:  # noqa: BLE001 - e.g. the result could not be unpickled
             r = _failed(p, e)
         _record(out, r, bar, on_result)
     return out
@@ -502,17 +508,7 @@ def _pool_round(fn, points, workers, out, bar, on_result):
     lost = []
     with cf.ProcessPoolExecutor(max_workers=workers, initializer=_init_worker, initargs=(os.getpid(),),
                                 mp_context=_mp_context()) as ex:
-        futs = {ex.submit(fn, p): p for p in points}
-        for fut in cf.as_completed(futs):
-            p = futs[fut]
-            try:
-                r = fut.result()
-            except cf.process.BrokenProcessPool:
-                lost.append(p)
-                continue
-            except Exception as e:  # noqa: BLE001 - e.g. the result could not be unpickled
-                r = _failed(p, e)
-            _record(out, r, bar, on_result)
+        _run_futures(lambda p: ex.submit(fn, p), points, bar, cf.as_completed, on_result, out, lost)
     return lost
 
 
