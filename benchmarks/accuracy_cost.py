@@ -45,9 +45,9 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, ".."))
 
 import kedfem as kf  # noqa: E402
-from kedfem.effects import LINEAR_EFFECTS  # noqa: E402
+from kedfem.fe.effects import LINEAR_EFFECTS  # noqa: E402
 import mechanisms  # noqa: E402
-from kedfem.scene import ACCURACY_PRESETS  # noqa: E402
+from kedfem.analysis.scene import ACCURACY_PRESETS  # noqa: E402
 
 LINEAR = LINEAR_EFFECTS
 
@@ -60,7 +60,7 @@ def cases(quick: bool):
         "four-bar": (lambda **p: mechanisms.build("four_bar", **p), dict(effects=LINEAR, damping=z2), 1536),
     }
     if not quick:
-        from kedfem.defaults import MOULD_EFFECTS
+        from kedfem.analysis.defaults import MOULD_EFFECTS
         out["six-bar"] = (lambda **p: mechanisms.build("six_bar", **p), dict(effects=LINEAR, damping=z2), 1536)
         out["mould oscillator"] = (lambda **p: mechanisms.build("mould_oscillator", **p),
                                    dict(effects=MOULD_EFFECTS, damping=z2, eps=1e-9), 1536)

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import warnings
 
-from kedfem.defaults import default_scene
-from kedfem.pipeline import solve
+from kedfem.analysis.defaults import default_scene
+from kedfem.analysis.pipeline import solve
 
 TARGET = 17.33  # Hz, paper Table 3, group 1, state-space method
 

@@ -40,11 +40,11 @@ sys.path.insert(0, os.path.join(HERE, ".."))
 sys.path.insert(0, HERE)
 
 import kedfem as kf  # noqa: E402
-from kedfem.effects import LINEAR_EFFECTS  # noqa: E402
+from kedfem.fe.effects import LINEAR_EFFECTS  # noqa: E402
 import linkages  # noqa: E402
 import mechanisms  # noqa: E402
-from kedfem.defaults import MOULD_EFFECTS  # noqa: E402
-from kedfem.scenefile import preset  # noqa: E402
+from kedfem.analysis.defaults import MOULD_EFFECTS  # noqa: E402
+from kedfem.io.scenefile import preset  # noqa: E402
 
 LINEAR = LINEAR_EFFECTS
 RPM = 2 * math.pi / 60

@@ -28,7 +28,7 @@ sys.path.insert(0, os.path.dirname(HERE))
 
 import kedfem as kf  # noqa: E402
 import mechanisms  # noqa: E402
-from kedfem.scenefile import preset  # noqa: E402
+from kedfem.io.scenefile import preset  # noqa: E402
 
 LEVELS = (48, 96, 192, 384, 768, 1536)
 

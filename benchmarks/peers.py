@@ -55,12 +55,12 @@ What is compared
    discrete problem; the largest relative difference of ``U`` is printed.
 3. **Time-invariant exciter** (``mechanisms/exciter.py``): kedfem against
    modal superposition at equal accuracy (beam mid-span deflection at 72
-   nodes against kedfem foh at 4608 elements): ``kedfem.validation.
+   nodes against kedfem foh at 4608 elements): ``kedfem.analysis.validation.
    modal_superposition`` (the same piecewise-linear load as ``foh``) and a
    spectral modal superposition (DFT of the sampled load, exact harmonic
    response per mode), which is exact for this single-harmonic load and wins.
 4. **The flop bound**: the flops of kedfem's periodic solve on the chain
-   (:func:`kedfem.flops.periodic_flops`, with the Taylor degree and the
+   (:func:`kedfem.lab.flops.periodic_flops`, with the Taylor degree and the
    squarings the exponentials actually chose) divided by this machine's
    batched matmul rate measured in the same run at the same sizes (best of
    ``np.matmul`` on the whole ``(n, m, m)`` stack and of a two-thread split
@@ -93,10 +93,11 @@ from threadpoolctl import threadpool_info, threadpool_limits
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 sys.path.insert(0, ROOT)
 import kedfem as kf
-from kedfem import flops, periodic
-from kedfem.expm import second_order_transition
-from kedfem.pipeline import assemble_scene
-from kedfem.validation import modal_superposition
+from kedfem.lab import flops
+from kedfem.solvers import periodic
+from kedfem.solvers.expm import second_order_transition
+from kedfem.analysis.pipeline import assemble_scene
+from kedfem.analysis.validation import modal_superposition
 from mechanisms import exciter, slider_crank
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -558,7 +559,7 @@ def study_exciter(targets, repeats):
                                   max(repeats, 5))
         rows = [("kedfem periodic.solve, constant M C K (foh)", n_k, err(sol.U), t_inv),
                 ("kedfem kf.solve end to end (assembly + solve)", n_k, err(res.resample(tk).U), t_e2e),
-                ("modal superposition, kedfem.validation (same load)", n_k, err(U_msv), t_msv),
+                ("modal superposition, kedfem.analysis.validation (same load)", n_k, err(U_msv), t_msv),
                 ("spectral modal superposition (DFT of the load)", NE, err(U_sp), t_spec)]
         for name, n, e, t in rows:
             say(f"{tol:7.0e} {name:48} {n:5d} {e:8.1e} {t:9.4f} {t / t_inv:8.2f}")
@@ -753,7 +754,7 @@ def summary(sc, ch, ex, fl, de, quick, wall, info):
              "one FFT) is faster than kedfem and exact for this single-harmonic load; kedfem's niche is "
              "time-varying M(t), C(t), K(t).\n")
     L.append("### Flop bound (chain, zoh, `periodic.solve`)\n")
-    L.append("Bound = flops (`kedfem.flops.periodic_flops`, with the degree and squarings the exponentials "
+    L.append("Bound = flops (`kedfem.lab.flops.periodic_flops`, with the degree and squarings the exponentials "
              "chose) / batched matmul rate at the same sizes, measured just before each solve. shipped: BLAS "
              "threads as configured; blas1: inside `threadpool_limits(1)`. When the other core is busy, "
              "OpenBLAS's threads slow kedfem's main-thread products (condensation) and small LAPACK calls "

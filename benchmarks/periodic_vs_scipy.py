@@ -12,7 +12,7 @@ Methods, all on the SAME discretization (zero-order hold, the paper's scheme, sa
 n), so they compute the same discrete periodic solution; their difference is
 printed (``diff``) and must be at rounding level for the timing comparison to be
 at equal accuracy. Each exponential is accurate to rounding (SciPy) or to the
-same backward error (kedfem ``delta`` from :func:`kedfem.periodic.auto_delta`,
+same backward error (kedfem ``delta`` from :func:`kedfem.solvers.periodic.auto_delta`,
 <= 1e-10; Taylor series to 1e-16 per term), far below the zoh discretization
 error, which is printed as ``err`` against a converged reference (kedfem magnus2
 at n = 14400, second order; its own error, estimated by comparison with n = 7200,
@@ -245,7 +245,7 @@ MEMORY_CHILD = textwrap.dedent("""
     sys.path.insert(0, {here!r})
     import numpy as np
     from periodic_vs_scipy import chain, T, vm_hwm_mib
-    from kedfem import periodic
+    from kedfem.solvers import periodic
     N, n = {N}, {n}
     M, C, make = chain(N)
     K, Q = make(n)

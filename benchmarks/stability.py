@@ -41,7 +41,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, ".."))
 
 import kedfem as kf  # noqa: E402
-from kedfem.effects import LINEAR_EFFECTS  # noqa: E402
+from kedfem.fe.effects import LINEAR_EFFECTS  # noqa: E402
 import mechanisms  # noqa: E402
 
 LINEAR = LINEAR_EFFECTS

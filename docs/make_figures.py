@@ -16,7 +16,7 @@ import numpy as np
 
 import kedfem as kf
 import mechanisms
-from kedfem import export, plots, render
+from kedfem.io import export, plots, render
 
 IMG = Path(__file__).resolve().parent / "img"
 

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import kedfem as kf
 import mechanisms
-from kedfem import export, render
+from kedfem.io import export, render
 
 
 def main(out="export-out", steps=120, render_png=True):

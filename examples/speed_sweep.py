@@ -13,7 +13,7 @@ Python processes that import this file.
 import argparse
 from pathlib import Path
 
-from kedfem import sweep
+from kedfem.io import sweep
 
 BASE = {
     "mechanism": {"name": "slider_crank", "elements": 6},

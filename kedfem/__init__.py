@@ -3,23 +3,22 @@
 from .errors import (AccuracyWarning, ConvergenceWarning, InputError, InstabilityWarning, KedError,
                      KinematicsError, MobilityError, OptionalDependencyError, ResonanceError,
                      SingularMassError, UnboundedResponseError)
-from .materials import Material, Section
-from .mechanism import Mechanism
-from .kinematics import Cycle, Motion, kinematics, kinematics_at, static_motion
-from .assembly import FEModel
-from .effects import EFFECTS, ModalDamping, Rayleigh
-from .kinetostatics import kinetostatics
-from .modal import ModalResult, global_matrices, natural_frequencies
+from .model.materials import Material, Section
+from .model.mechanism import Mechanism
+from .motion.kinematics import Cycle, Motion, kinematics, kinematics_at, static_motion
+from .fe.assembly import FEModel
+from .fe.effects import EFFECTS, ModalDamping, Rayleigh
+from .motion.kinetostatics import kinetostatics
+from .analysis.modal import ModalResult, global_matrices, natural_frequencies
 
 __version__ = "0.1.0"
-from .statics import StaticResult, static_response
-from .scene import Scene
-from .results import Frequencies, LinkPeaks, PeriodicResult, Stability
-from .pipeline import solve
-from . import periodic, nonlinear
-from .expm import expm
-from .validation import ValidationReport, validate, table3
-from .defaults import default_scene
-from .scenefile import SceneFileError, load_scene, scene_from_dict
-from .reduction import CraigBampton
-from .mesh_check import MeshError, mesh_error
+from .analysis.statics import StaticResult, static_response
+from .analysis.scene import Scene
+from .analysis.results import Frequencies, LinkPeaks, PeriodicResult, Stability
+from .analysis.pipeline import solve
+from .solvers.expm import expm
+from .analysis.validation import ValidationReport, validate, table3
+from .analysis.defaults import default_scene
+from .io.scenefile import SceneFileError, load_scene, scene_from_dict
+from .fe.reduction import CraigBampton
+from .analysis.mesh_check import MeshError, mesh_error

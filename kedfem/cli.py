@@ -34,7 +34,7 @@ from pathlib import Path
 
 from . import __version__
 from .errors import InputError, KedError
-from .outdir import MANIFEST, check_replaceable
+from .io.outdir import MANIFEST, check_replaceable
 
 __all__ = ["main", "build_parser"]
 
@@ -62,9 +62,9 @@ def _number(parse, check, requirement: str, unit: str = ""):
 
 
 def _steps_arg(s: str) -> int:
-    from .scene import MAX_STEPS
+    from .analysis.scene import MAX_STEPS
     return _number(int, lambda v: 3 <= v <= MAX_STEPS,
-                   f"lie in 3 .. {MAX_STEPS} (see kedfem.scene.MAX_STEPS)")(s)
+                   f"lie in 3 .. {MAX_STEPS} (see kedfem.analysis.scene.MAX_STEPS)")(s)
 
 
 _rtol_arg = _number(float, lambda v: 0 < v < 1, "lie in (0, 1) (a relative error, e.g. 1e-3)")
@@ -78,7 +78,7 @@ def _int_range(lo: int, hi: int):
 
 
 def _scheme_names():
-    from .schemes import names
+    from .solvers.schemes import names
     return names()
 
 
@@ -120,9 +120,9 @@ class _Loaded:
 def _load(target: str | None, overrides: dict) -> _Loaded:
     """Scene from a file, a mechanism name or the built-in default, with command-line overrides."""
     from . import catalogue
-    from . import scenefile as sf
-    from .defaults import default_scene
-    from .scenefile import RPM, Outputs
+    from .io import scenefile as sf
+    from .analysis.defaults import default_scene
+    from .io.scenefile import RPM, Outputs
     if target is None:
         scene = default_scene()
         kw = {}
@@ -140,7 +140,7 @@ def _load(target: str | None, overrides: dict) -> _Loaded:
         if "rtol" in overrides:
             kw["rtol"] = overrides["rtol"]
         if "effects" in overrides:
-            from .effects import EFFECTS
+            from .fe.effects import EFFECTS
             kw["effects"] = tuple(EFFECTS) if overrides["effects"] == "all" else tuple(overrides["effects"])
         if kw:
             scene = dataclasses.replace(scene, **kw)
@@ -185,7 +185,7 @@ def _rel(p: Path, base: Path) -> str:
 
 
 def _solve(scene):
-    from .pipeline import solve
+    from .analysis.pipeline import solve
     with _report_warnings():
         return solve(scene)
 
@@ -213,7 +213,7 @@ def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_di
     """The summary table printed by ``kedfem run``."""
     import numpy as np
 
-    from .scenefile import scene_summary
+    from .io.scenefile import scene_summary
     sc = res.scene
     info = scene_summary(sc)
     L = []
@@ -300,7 +300,7 @@ def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_di
 def _write_outputs(res, freqs, peaks, out_dir: Path, stage: _Stage, *, plots: bool, csv: bool,
                    npz: bool, vtk: bool, render: bool, modes: int, scale, every: int, dofs,
                    mesh=None) -> list[Path]:
-    from . import export
+    from .io import export
     files: list[Path] = []
     out_dir.mkdir(parents=True, exist_ok=True)
     if csv:
@@ -312,7 +312,7 @@ def _write_outputs(res, freqs, peaks, out_dir: Path, stage: _Stage, *, plots: bo
         with stage("npz"):
             files.append(export.write_npz(res, out_dir / "result.npz", freqs))
     if plots:
-        from . import plots as pl
+        from .io import plots as pl
         with stage("plots"):
             files.extend(pl.all_plots(res, out_dir, freqs, dofs or None))
     series = None
@@ -323,7 +323,7 @@ def _write_outputs(res, freqs, peaks, out_dir: Path, stage: _Stage, *, plots: bo
             if modes:
                 files.append(export.write_mode_shapes(res, out_dir, n_modes=modes).pvd)
     if render:
-        from . import render as rd
+        from .io import render as rd
         with stage("render"):
             files.append(rd.render_series(series, out_dir / "deformed.png"))
     return files
@@ -333,7 +333,7 @@ def _check_dofs(scene, dofs) -> None:
     """A bad plot label is an input error before any work, not after the solve."""
     if not dofs:
         return
-    from .assembly import FEModel
+    from .fe.assembly import FEModel
     model = FEModel(scene.mech, reduction=scene.reduction)
     for d in dofs:
         model.dof_index(d, owner="plot: ")
@@ -376,7 +376,7 @@ def _cmd_run(args) -> int:
         peaks = res.peaks()
     mesh = None
     if not args.no_mesh_check:
-        from .mesh_check import mesh_error
+        from .analysis.mesh_check import mesh_error
         with stage("mesh check"):
             mesh = mesh_error(res)
     want = dict(plots=o.plots and not args.no_plots, csv=o.csv and not args.no_csv,
@@ -385,7 +385,7 @@ def _cmd_run(args) -> int:
     files: list[Path] = []
     text = ""
     if any(want.values()):
-        from .outdir import RunFolder
+        from .io.outdir import RunFolder
         with RunFolder(out_dir, "run", dict(scene=ld.source)) as rf:
             staged = _write_outputs(
                 res, freqs, peaks, rf.path, stage, **want,
@@ -411,9 +411,9 @@ def _cmd_run(args) -> int:
 # -------------------------------------------------------------- validate
 def _cmd_validate(args) -> int:
     from . import catalogue
-    from .effects import Rayleigh
-    from .scene import Scene
-    from .validation import table3, validate
+    from .fe.effects import Rayleigh
+    from .analysis.scene import Scene
+    from .analysis.validation import table3, validate
     ok = True
     t0 = time.perf_counter()
     if not args.skip_table3:
@@ -454,8 +454,8 @@ def _short(v) -> str:
 
 
 def _cmd_sweep(args) -> int:
-    from . import scenefile as sf
-    from . import sweep as sw
+    from .io import scenefile as sf
+    from .io import sweep as sw
     ld = _load(args.scene, _overrides(args))
     axes = dict(ld.sweep)
     for text in args.param or ():
@@ -469,8 +469,8 @@ def _cmd_sweep(args) -> int:
     out_dir = Path(args.out) if args.out else ld.outputs.dir
     _check_out_dir(out_dir)
     check_replaceable(out_dir)
-    from .outdir import RunFolder
-    from .sweep_journal import SweepJournal, sweep_signature
+    from .io.outdir import RunFolder
+    from .io.sweep_journal import SweepJournal, sweep_signature
     points = sw.make_points(ld.data, axes)
     journal = SweepJournal(out_dir.with_name(out_dir.name + ".partial.csv"), sweep_signature(ld.data, axes),
                            list(axes))
@@ -525,8 +525,8 @@ def _cmd_sweep(args) -> int:
 
 # ---------------------------------------------------------------- export
 def _cmd_export(args) -> int:
-    from . import export
-    from .outdir import RunFolder
+    from .io import export
+    from .io.outdir import RunFolder
     ld = _load(args.scene, _overrides(args))
     o = ld.outputs
     out_dir = Path(args.out) if args.out else o.dir
@@ -547,7 +547,7 @@ def _cmd_export(args) -> int:
         t2 = time.perf_counter()
         frame = None
         if args.render or o.render:
-            from . import render as rd
+            from .io import render as rd
             frame = series.peak_frame if args.frame is None else args.frame
             staged.append(rd.render_series(series, rf.path / "deformed.png", frame=frame))
         files = [out_dir / Path(f).relative_to(rf.path) for f in staged]
@@ -596,9 +596,9 @@ def _param_docs(module) -> dict[str, str]:
 
 def _cmd_list(args) -> int:
     from . import catalogue
-    from .effects import EFFECTS
-    from .scene import HOLDS, NONLINEAR_METHODS
-    from .scenefile import describe_damping, mechanism_parameters, preset
+    from .fe.effects import EFFECTS
+    from .analysis.scene import HOLDS, NONLINEAR_METHODS
+    from .io.scenefile import describe_damping, mechanism_parameters, preset
     print("mechanisms (kedfem run NAME; parameters go in the [mechanism] table of a scene file, SI units;")
     print("            the speed is the top-level speed_rpm):")
     for name in catalogue.available():
@@ -617,7 +617,7 @@ def _cmd_list(args) -> int:
     print("\neffects (the scene's effects = [...]; nothing else is assembled):")
     for e in EFFECTS.values():
         print(f"  {e.name:<24s} {e.adds}")
-    from .schemes import SCHEMES
+    from .solvers.schemes import SCHEMES
     print("\ntime schemes (method = ...; 'auto' is radau3):")
     for sch in SCHEMES.values():
         if sch.name == "fourier":

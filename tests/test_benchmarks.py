@@ -9,8 +9,8 @@ import pytest
 import kedfem as kf
 import mechanisms
 from kedfem import cli
-from kedfem import scenefile as sf
-from kedfem.scene import ACCURACY_PRESETS
+from kedfem.io import scenefile as sf
+from kedfem.analysis.scene import ACCURACY_PRESETS
 
 
 def test_accuracy_presets_resolve_and_explicit_knobs_win():
@@ -66,7 +66,7 @@ def test_tolerances_are_met_on_the_slider_crank():
 
 
 def test_flop_counts_by_hand():
-    from kedfem import flops
+    from kedfem.lab import flops
     assert flops.matmul_flops(10) == 2000.0 and flops.matmul_flops(2, 3, 4) == 48.0
     # 4 exponentials of 6x6, 5 approximant products each, squarings 0, 1, 2, 3 -> 20 + 6 products
     assert flops.expm_flops(6, 5, [0, 1, 2, 3], approximant="taylor") == pytest.approx(26 * 2 * 6 ** 3)

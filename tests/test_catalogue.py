@@ -41,7 +41,7 @@ def kedfem_command():
 
 def test_the_core_imports_no_catalogue_package():
     """The library reached up into mechanisms/ (an import circle: mechanisms imports kedfem)."""
-    for path in (ROOT / "kedfem").glob("*.py"):
+    for path in (ROOT / "kedfem").rglob("*.py"):
         tree = ast.parse(path.read_text())
         for node in ast.walk(tree):
             names = []
@@ -76,7 +76,7 @@ def run(cmd, cwd, **kw):
 
 def test_a_users_mechanisms_folder_breaks_nothing(user_folder):
     """It broke scene loading and sweeps (`module 'mechanisms' has no attribute 'available'`)."""
-    code = ("from kedfem.scenefile import scene_from_dict; import kedfem as kf;"
+    code = ("from kedfem.io.scenefile import scene_from_dict; import kedfem as kf;"
             "s = scene_from_dict({'mechanism': {'name': 'four_bar', 'elements': 2}, 'steps': 24});"
             "print(kf.solve(s).converged)")
     r = run([sys.executable, "-c", code], user_folder)  # '' (the folder) first on sys.path

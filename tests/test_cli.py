@@ -15,7 +15,7 @@ import pytest
 
 import kedfem
 from kedfem import cli
-from kedfem.scenefile import MAX_STEPS
+from kedfem.io.scenefile import MAX_STEPS
 
 ROOT = Path(__file__).resolve().parents[1]
 #: wall-time limits are multiplied by this factor (set it on a loaded or slow machine)
@@ -161,7 +161,7 @@ def test_help_version_and_list(capsys):
 
 
 def test_validate(capsys, monkeypatch):
-    from kedfem import validation
+    from kedfem.analysis import validation
 
     def quick_table3(steps=None, **kw):
         assert steps == 12

@@ -1,12 +1,12 @@
-"""An effect in its own module (kedfem/joint_torque.py) joins the registry with one line."""
+"""An effect in its own module (kedfem/fe/joint_torque.py) joins the registry with one line."""
 
 import numpy as np
 import pytest
 
 import kedfem as kf
 import mechanisms
-from kedfem import effects
-from kedfem.joint_torque import JointTorque
+from kedfem.fe import effects
+from kedfem.fe.joint_torque import JointTorque
 
 
 @pytest.fixture()

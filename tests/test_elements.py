@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from kedfem import elements as el
+from kedfem.model import elements as el
 
 L, EA, EI, RHOA = 0.7, 3.0e6, 250.0, 2.5
 

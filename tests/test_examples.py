@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import kedfem as kf
-from kedfem import scenefile as sf
+from kedfem.io import scenefile as sf
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"

@@ -1,4 +1,4 @@
-"""Tests of kedfem.expm against independent truth.
+"""Tests of kedfem.solvers.expm against independent truth.
 
 References: a 60-digit decimal-arithmetic exponential (Taylor series with scaling
 and squaring in ``decimal``, exact conversion of the double input), closed forms,
@@ -30,7 +30,7 @@ from hypothesis import strategies as st
 
 from kedfem.errors import InputError
 from reference import augmented_transition
-from kedfem.expm import (affine_exponential, balance, expm, exponential_integrals,
+from kedfem.solvers.expm import (affine_exponential, balance, expm, exponential_integrals,
                          pade_coefficients, pade_degree, pade_error_bound,
                          second_order_transition, taylor_expm)
 

@@ -10,7 +10,7 @@ import pytest
 
 import kedfem as kf
 import mechanisms
-from kedfem import export
+from kedfem.io import export
 
 pv = pytest.importorskip("pyvista")
 
@@ -205,7 +205,7 @@ def png_is_not_blank(path):
 
 
 def test_offscreen_render_is_not_blank(slider, tmp_path):
-    from kedfem import render
+    from kedfem.io import render
     s = export.write_vtk_series(slider, tmp_path, every=5)
     png = render.render_series(s, tmp_path / "deformed.png")
     assert png.is_file() and png_is_not_blank(png)
@@ -215,8 +215,8 @@ def test_offscreen_render_is_not_blank(slider, tmp_path):
 
 
 def test_modules_import_without_heavy_libraries():
-    code = ("import sys; import kedfem.cli, kedfem.scenefile, kedfem.export, kedfem.plots, kedfem.render, "
-            "kedfem.sweep; print(','.join(m for m in ('matplotlib', 'pyvista', 'meshio', 'vtk', 'dask', "
+    code = ("import sys; import kedfem.cli, kedfem.io.scenefile, kedfem.io.export, kedfem.io.plots, kedfem.io.render, "
+            "kedfem.io.sweep; print(','.join(m for m in ('matplotlib', 'pyvista', 'meshio', 'vtk', 'dask', "
             "'distributed', 'tqdm') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == ""

@@ -14,8 +14,8 @@ import numpy as np
 
 import kedfem as kf
 import mechanisms
-from kedfem import elements as el
-from kedfem.effects import Assembler
+from kedfem.model import elements as el
+from kedfem.fe.effects import Assembler
 
 
 def dT(theta, order):

@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 from test_scenefile import keys, mutate, to_toml, values  # tests/ is on sys.path under pytest
 
 import kedfem as kf
-from kedfem import scenefile as sf
+from kedfem.io import scenefile as sf
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = sorted((ROOT / "examples" / "scenes").glob("*.toml"))
@@ -59,7 +59,7 @@ def test_mutated_example_scenes_load_and_solve_or_name_the_problem(tmp_path, pat
         if e.key:
             assert sf._keyfmt(e.key) in str(e)
         return
-    from kedfem.assembly import FEModel
+    from kedfem.fe.assembly import FEModel
     try:
         n_dof = FEModel(scene.mech, reduction=scene.reduction).n_dof
     except kf.KedError as e:

@@ -8,7 +8,8 @@ import pytest
 
 import kedfem as kf
 import mechanisms
-from kedfem.effects import Assembler
+from kedfem.fe import effects
+from kedfem.fe.effects import Assembler
 
 SC_EFF = ("inertia", "coupling")
 
@@ -97,7 +98,7 @@ def test_effect_not_named_is_never_computed(monkeypatch):
         raise AssertionError("code of an effect that was not asked for ran")
     monkeypatch.setattr(Assembler, "_von_karman", boom)
     monkeypatch.setattr(Assembler, "state_terms", boom)
-    monkeypatch.setattr(kf.effects, "kinetostatics", boom)
+    monkeypatch.setattr(effects, "kinetostatics", boom)
     sc = slider_crank_scene(elements=4, steps=60)
     assert not sc.state_dependent
     res = kf.solve(sc)
@@ -165,8 +166,8 @@ def test_periodic_result_matches_direct_integration():
     time, from rest, cycle by cycle until the cycle-to-cycle defect is below
     1e-9. Its step T/16384 gives an error of about (w1 dt)^2/12 ~ 1e-6.
     """
-    from kedfem.pipeline import assemble_scene
-    from kedfem.transient import integrate_periodic, sampled_system
+    from kedfem.analysis.pipeline import assemble_scene
+    from kedfem.lab.transient import integrate_periodic, sampled_system
     m = mechanisms.build("slider_crank", elements=2)
     eff = ("inertia", "coupling", "axial_stiffening")
     damp = kf.Rayleigh(alpha=5.0, beta=3e-5)
@@ -230,8 +231,8 @@ def test_magnus2_keeps_a_damped_six_bar_stable_at_coarse_steps(steps):
 def test_time_invariant_scene_takes_the_constant_matrix_path():
     """The exciter's M, C, K do not vary: kf.solve passes them as constants (one exponential);
     the answer is the sampled-matrix solve of the same discretisation."""
-    from kedfem import periodic
-    from kedfem.pipeline import _constant_or_sampled, assemble_scene
+    from kedfem.solvers import periodic
+    from kedfem.analysis.pipeline import _constant_or_sampled, assemble_scene
     sc = kf.Scene(mechanisms.build("exciter"), steps=72, effects=("inertia", "coupling", "springs"),
                   damping=kf.ModalDamping(0.02), hold="foh", estimate=False)
     mo, _model, asm = assemble_scene(sc)

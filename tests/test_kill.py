@@ -19,7 +19,7 @@ from pathlib import Path
 
 import pytest
 
-from kedfem.outdir import MANIFEST
+from kedfem.io.outdir import MANIFEST
 
 RUN = ("run", "exciter", "--steps", "24", "--no-mesh-check", "--no-plots", "--modes", "0", "--every", "6")
 SWEEP = ("sweep", "exciter", "--param", "speed_rpm=300:900:6", "--scheduler", "serial", "--steps", "24",

@@ -5,7 +5,7 @@ import pytest
 
 import kedfem as kf
 import mechanisms
-from kedfem.mesh_check import coarsened, comparison_mesh, mesh_error
+from kedfem.analysis.mesh_check import coarsened, comparison_mesh, mesh_error
 
 LINEAR = ("inertia", "coupling", "axial_stiffening")
 

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import kedfem as kf
+from kedfem.analysis import defaults
 import mechanisms
 from mechanisms import mould_oscillator as mo
 
@@ -34,7 +35,7 @@ def test_state_space_versus_modal_and_convergence(table):
 
 def test_rise_comes_from_the_non_linear_effects():
     """Without geometric non-linearity the fundamental hardly moves between the groups."""
-    eff = tuple(e for e in kf.defaults.MOULD_EFFECTS if e != "geometric_nonlinearity")
+    eff = tuple(e for e in defaults.MOULD_EFFECTS if e != "geometric_nonlinearity")
     f = []
     for g in (1, 4):
         sc = dataclasses.replace(kf.default_scene(group=g, steps=90), effects=eff)

@@ -1,4 +1,4 @@
-"""Tests of kedfem.nonlinear: Duffing oscillators against harmonic balance."""
+"""Tests of kedfem.solvers.nonlinear: Duffing oscillators against harmonic balance."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.optimize import root
 
-from kedfem import nonlinear
+from kedfem.solvers import nonlinear
 from kedfem.errors import ConvergenceWarning, InputError
 
 

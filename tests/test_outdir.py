@@ -7,7 +7,7 @@ import pytest
 
 from kedfem import cli
 from kedfem.errors import InputError
-from kedfem.outdir import MANIFEST, RunFolder, check_replaceable, clean_leftovers
+from kedfem.io.outdir import MANIFEST, RunFolder, check_replaceable, clean_leftovers
 
 QUICK = ("--steps", "24", "--no-mesh-check", "--no-plots", "--modes", "0", "--every", "6")
 
@@ -140,7 +140,7 @@ def test_overdamped_modes_are_named_not_nan(tmp_path):
 
     import kedfem as kf
     import mechanisms
-    from kedfem import export
+    from kedfem.io import export
     res = kf.solve(kf.Scene(mechanisms.build("exciter"), effects=("inertia", "coupling", "springs"),
                             damping=kf.Rayleigh(alpha=0.0, beta=0.05), steps=24, estimate=False))
     f = res.frequencies(6, nodes=[0, 1])

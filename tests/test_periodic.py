@@ -1,4 +1,4 @@
-"""Tests of kedfem.periodic against independent truth.
+"""Tests of kedfem.solvers.periodic against independent truth.
 
 References: exact periodic solutions in closed form (harmonic: complex amplitude;
 square wave: piecewise exact solution with periodic matching), the exact
@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from kedfem import periodic
+from kedfem.solvers import periodic
 from kedfem.errors import InputError, InstabilityWarning, ResonanceError, SingularMassError
 from reference import augmented_transition
 

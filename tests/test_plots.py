@@ -7,7 +7,7 @@ import pytest
 
 import kedfem as kf
 import mechanisms
-from kedfem import plots
+from kedfem.io import plots
 
 matplotlib = pytest.importorskip("matplotlib")
 
@@ -76,7 +76,7 @@ def test_displacement_dofs(res, tmp_path, figures):
     with pytest.raises(kf.InputError, match="rod.n1.uz"):
         plots.displacement(res, tmp_path / "d.png", ["rod.n1.uz"])
     auto = plots.auto_dofs(res, 2)
-    from kedfem.export import dof_unit
+    from kedfem.io.export import dof_unit
     amp = {d: np.ptp(res.dof(d)) for d in res.dof_labels if dof_unit(d) == "m"}
     assert set(auto) == set(sorted(amp, key=amp.get)[-2:])
 

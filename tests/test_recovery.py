@@ -1,4 +1,4 @@
-"""Section forces by element equilibrium (kedfem/recovery.py) against closed forms and mesh convergence."""
+"""Section forces by element equilibrium (kedfem/analysis/recovery.py) against closed forms and mesh convergence."""
 
 import math
 
@@ -7,7 +7,7 @@ import pytest
 
 import kedfem as kf
 import mechanisms
-from kedfem import recovery
+from kedfem.analysis import recovery
 
 
 def test_fixed_end_maps_give_the_textbook_fixed_end_moments():
@@ -89,7 +89,7 @@ def test_four_element_stresses_match_an_eight_element_mesh(name):
     """Peak stresses on the presets' 4-element links within 1e-3 of 8 elements per link (themselves
     within 2e-5 of 16 on the four-bar; before the element-equilibrium recovery the 4-element
     stresses were 3 % high)."""
-    from kedfem.scenefile import preset
+    from kedfem.io.scenefile import preset
     p = preset(name)
     peaks = {}
     for ne in (4, 8):
@@ -101,10 +101,10 @@ def test_four_element_stresses_match_an_eight_element_mesh(name):
 
 
 def test_modal_damping_field_matches_the_eigenproblem_at_any_instant():
-    """The interpolated C(t) of a solve against an eigenproblem per instant (kedfem/modal_damping.py)."""
-    from kedfem import pipeline
-    from kedfem.effects import Assembler
-    from kedfem.scenefile import preset
+    """The interpolated C(t) of a solve against an eigenproblem per instant (kedfem/fe/modal_damping.py)."""
+    from kedfem.analysis import pipeline
+    from kedfem.fe.effects import Assembler
+    from kedfem.io.scenefile import preset
     p = preset("four_bar")
     sc = kf.Scene(mechanisms.build("four_bar"), effects=p.effects, damping=p.damping)
     run = pipeline._Run(sc)

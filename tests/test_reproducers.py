@@ -8,7 +8,7 @@ import pytest
 
 import kedfem as kf
 import mechanisms
-from kedfem.scenefile import preset
+from kedfem.io.scenefile import preset
 
 RPM = 2 * math.pi / 60
 
@@ -62,7 +62,7 @@ def test_a_vanishing_speed_is_named():
 
 
 def test_render_frame_of_a_series_index_says_what_to_do(tmp_path):
-    from kedfem import render
+    from kedfem.io import render
     pvd = tmp_path / "x.pvd"
     pvd.write_text("<VTKFile/>")
     with pytest.raises(kf.InputError, match="render_series"):
@@ -76,7 +76,7 @@ def test_render_frame_of_a_series_index_says_what_to_do(tmp_path):
 
 def test_a_zero_length_link_in_a_scene_file_is_named_at_its_line(tmp_path):
     """`coupler = 0` read 'cannot be assembled at the reference crank_angle', located at the table."""
-    from kedfem import scenefile as sf
+    from kedfem.io import scenefile as sf
     p = tmp_path / "s.toml"
     p.write_text('steps = 24\n[mechanism]\nname = "four_bar"\ncoupler = 0\n')
     with pytest.raises(sf.SceneFileError, match="coupler must be a length > 0") as ei:

@@ -10,8 +10,8 @@ from hypothesis import strategies as st
 
 import kedfem as kf
 import mechanisms
-from kedfem import scenefile as sf
-from kedfem.defaults import default_scene
+from kedfem.io import scenefile as sf
+from kedfem.analysis.defaults import default_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = sorted((ROOT / "examples" / "scenes").glob("*.toml"))

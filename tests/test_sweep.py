@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import kedfem as kf
-from kedfem import scenefile as sf
-from kedfem import sweep
+from kedfem.io import scenefile as sf
+from kedfem.io import sweep
 
 BASE = {"mechanism": {"name": "slider_crank", "elements": 3}, "steps": 30,
         "effects": ["inertia", "coupling", "axial_stiffening"], "damping": {"model": "modal", "zeta": 0.02}}
@@ -153,7 +153,7 @@ def test_a_dead_worker_costs_no_other_point(tmp_path, once):
 
 
 def test_partial_table_resumes_only_the_missing_points(tmp_path):
-    from kedfem.sweep_journal import SweepJournal, sweep_signature
+    from kedfem.io.sweep_journal import SweepJournal, sweep_signature
     axes = {"speed_rpm": [250.0, 500.0, 750.0]}
     points = sweep.make_points(BASE, axes)
     res = sweep.run_sweep(BASE, axes, scheduler="serial", progress=False, frequencies=False)

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from kedfem import nonlinear, periodic
+from kedfem.solvers import nonlinear, periodic
 from test_nonlinear import harmonic_balance_duffing  # tests/ is on sys.path under pytest
 
 

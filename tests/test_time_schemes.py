@@ -20,9 +20,10 @@ from scipy.integrate import solve_ivp
 from scipy.special import mathieu_a, mathieu_b
 
 import kedfem as kf
-from kedfem import accuracy, fourier, schemes
+from kedfem.analysis import accuracy
+from kedfem.solvers import fourier, schemes
 from kedfem.errors import InputError, InstabilityWarning
-from kedfem.results import stability_verdict
+from kedfem.analysis.results import stability_verdict
 
 T = 1.0
 W = 2 * math.pi / T
@@ -228,7 +229,7 @@ def test_unbounded_response_is_a_named_error(name, n):
 
 
 def test_a_diverging_iterate_keeps_the_last_bounded_one():
-    from kedfem.nonlinear import fixed_point
+    from kedfem.solvers.nonlinear import fixed_point
     calls = []
 
     def G(U, V, it):

@@ -1,4 +1,4 @@
-"""Tests of kedfem.transient (direct integration reference) against closed forms."""
+"""Tests of kedfem.lab.transient (direct integration reference) against closed forms."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from kedfem.errors import ConvergenceWarning, InputError
-from kedfem.transient import integrate_periodic, sampled_system
+from kedfem.lab.transient import integrate_periodic, sampled_system
 
 M1, K1, ZETA1, T1 = 1.0, (2 * math.pi * 3) ** 2, 0.1, 1.0
 C1 = 2 * ZETA1 * math.sqrt(K1 * M1)

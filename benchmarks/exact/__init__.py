@@ -5,7 +5,7 @@ Lagrange-multiplier constraints, generalised-alpha (Arnold & Bruls 2007)
 index-3 integration cycle after cycle to the periodic steady state.
 
 Independent of kedfem's formulation: it reads a ``kedfem.Mechanism`` for the
-data and uses ``kedfem.kinematics`` only for the rigid-body state at t = 0.
+data and uses ``kedfem.motion.kinematics`` only for the rigid-body state at t = 0.
 """
 
 from .ancf import ElementSet, gauss01, hermite, mass_matrix

@@ -1,0 +1,352 @@
+"""How far a result is from converged in time: two- and three-level estimates.
+
+A periodic solve on ``n`` time elements is compared with the same solve on
+fewer elements (same scheme, same output instants). With the values ``q_c``
+(coarse, ``n_c`` elements) and ``q_f`` (fine, ``n_f``) of a quantity and the
+convergence rate ``p``, Richardson's argument gives the error of the fine
+value as::
+
+    e_f ~ SAFETY |q_f - q_c| / ((n_f / n_c)^p - 1)
+
+The rate is *observed* from three levels where they exist (the ratio of
+successive differences). Levels in the scheme's asymptotic range (observed
+rate at least :data:`ASYMPTOTIC_FRACTION` of the scheme's order for values
+read between element ends, e.g. 2.5 for ``radau3``, whose dense output is of
+order 4) are credited the observed rate up to that order; levels before it
+(irregular convergence: the error of a badly resolved resonance can stall or
+change sign, then drop 20-50x at the next doubling) only up to the scheme's
+conservative ``assumed_rate`` and at least 1, which over-estimates rather
+than under-estimates. A tolerance-driven solve stops only on levels in the
+asymptotic range, where the estimate is within a small factor of the truth
+(``benchmarks/error_estimate.py``: 0.35 .. 7 on the catalogue and four
+linkages outside it at the default tolerance). With two levels the rate is
+the scheme's ``assumed_rate``. Errors are relative: a peak's to the peak, a
+history's (the largest difference over the cycle) to the history's own peak.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = ["LinkError", "ErrorEstimate", "Observables", "estimate", "ASSUMED_RATE", "SAFETY",
+           "ASYMPTOTIC_FRACTION", "HISTORY_FRACTION"]
+
+#: Factor on every estimate: two levels whose errors have opposite signs differ
+#: by less than the coarser one's error, which the rate alone does not see
+#: (measured on the flexible four-bar at 100 rpm, 0.5 % damping: a quantity whose
+#: error did not fall from 48 to 96 elements while the others fell 10x; estimate /
+#: true error 0.26 without it; ``benchmarks/error_estimate.py``).
+SAFETY = 1.35
+#: Levels are in the asymptotic range when their observed rate reaches this
+#: fraction of the scheme's order between element ends (``Scheme.dense_order``).
+ASYMPTOTIC_FRACTION = 0.625
+#: The histories of levels in the asymptotic range converge at least at this
+#: fraction of the order (radau3: 2); below it a resonance is still being
+#: resolved and a peak's rate can be a coincidence (measured on an offset
+#: slider-crank with a flexible crank and rod; costs nothing on the
+#: estimate study's 52 cases).
+HISTORY_FRACTION = 0.5
+#: Rate credited to a two-level estimate, per scheme: below the scheme's
+#: asymptotic rate for values read between element ends, so that a pair of
+#: solves before the asymptotic range is not under-estimated.
+ASSUMED_RATE = {"radau3": 3.0, "radau2": 2.0, "gauss3": 3.0, "gauss2": 2.0, "magnus2": 2.0,
+                "foh": 1.0, "zoh": 1.0, "fourier": 2.0}
+
+
+@dataclass(frozen=True)
+class Observables:
+    """What a level of a solve is judged by: per flexible link, its peaks and histories.
+
+    All levels of a solve are read on the same ``n_out`` output instants.
+
+    Attributes
+    ----------
+    links : tuple of str
+    elements : int
+        Time elements of the level.
+    deflection : ndarray, shape (n_links,)
+        Peak |mid-span deflection relative to the chord| [m].
+    deflection_at : ndarray of int, shape (n_links,)
+        Output instant nearest to that peak.
+    stress : ndarray, shape (n_links,)
+        Peak stress [Pa] (0 for links without an extreme-fibre distance).
+    stress_at : ndarray of int, shape (n_links,)
+        Output instant nearest to that peak.
+    stress_station : ndarray of int, shape (n_links,)
+        Station (node) of that peak.
+    deflection_history : tuple of ndarray, each (n_out,)
+        Mid-span deflection relative to the chord [m].
+    stress_history : tuple of ndarray, each (n_out, n_stations)
+        Stress at every station [Pa] (``(n_out, 0)`` without ``c``).
+    has_stress : tuple of bool
+    """
+
+    links: tuple[str, ...]
+    elements: int
+    deflection: np.ndarray
+    deflection_at: np.ndarray
+    stress: np.ndarray
+    stress_at: np.ndarray
+    stress_station: np.ndarray
+    deflection_history: tuple[np.ndarray, ...]
+    stress_history: tuple[np.ndarray, ...]
+    has_stress: tuple[bool, ...]
+
+
+@dataclass(frozen=True)
+class LinkError:
+    """Estimated relative time-discretisation errors of one flexible link.
+
+    Attributes
+    ----------
+    link : str
+    deflection : float
+        Of the peak mid-span deflection (relative to the chord).
+    stress : float
+        Of the peak stress (0 when the section has no extreme-fibre distance).
+    history : float
+        Largest error over the cycle of the mid-span deflection and of the
+        stress at every station, each relative to its own peak.
+    """
+
+    link: str
+    deflection: float
+    stress: float
+    history: float
+
+
+@dataclass(frozen=True)
+class ErrorEstimate:
+    """Estimated time-discretisation error of a result (see the module docstring).
+
+    Attributes
+    ----------
+    links : tuple of LinkError
+    levels : tuple of int
+        Time elements of the solves compared, finest (the result) last.
+    rate : float
+        Convergence rate used (the smallest over the quantities).
+    observed : bool
+        The rate was measured from three levels (else assumed).
+    rtol : float or None
+        Tolerance the solve was asked to meet.
+    history_rate : float
+        Convergence rate used for the histories.
+    resolved : bool
+        The coarser of the two finest levels resolves every mode the drive
+        can excite (one element per period of the highest; see
+        :meth:`kedfem.analysis.pipeline._Run.resolution`); an L-stable scheme damps the
+        resonant response of modes it does not resolve alike at every coarse
+        level, and two such levels can agree while both are wrong.
+    asymptotic : bool
+        The observed rate of the peaks reaches :data:`ASYMPTOTIC_FRACTION` of
+        the scheme's order: the estimate is close to the true error (else
+        it is an over-estimate).
+    """
+
+    links: tuple[LinkError, ...]
+    levels: tuple[int, ...]
+    rate: float
+    observed: bool
+    rtol: float | None = None
+    history_rate: float = 0.0
+    resolved: bool = True
+    asymptotic: bool = False
+
+    @property
+    def peak(self) -> float:
+        """Largest estimated relative error of any link's peak deflection or stress."""
+        return max((max(e.deflection, e.stress) for e in self.links), default=0.0)
+
+    @property
+    def history(self) -> float:
+        """Largest estimated relative error of any history over the cycle."""
+        return max((e.history for e in self.links), default=0.0)
+
+    @property
+    def met(self) -> bool:
+        """The peak errors meet ``rtol`` and the estimate can be believed.
+
+        Believed: three levels (a measured rate) whose coarser pair resolves
+        the relevant modes.
+        """
+        return (self.rtol is None or self.peak <= self.rtol) and self.reliable
+
+    @property
+    def reliable(self) -> bool:
+        """Three levels with a measured rate, the coarser two resolving the relevant modes."""
+        return self.observed and self.resolved
+
+    def link(self, name: str) -> LinkError:
+        """The estimate of one link."""
+        for e in self.links:
+            if e.link == name:
+                return e
+        raise InputError(f"no error estimate for link '{name}' "
+                         f"(flexible links: {', '.join(e.link for e in self.links)})")
+
+    def describe(self) -> str:
+        """One line: peak and history errors and how they were obtained."""
+        how = (f"observed rates {self.rate:.1f} / {self.history_rate:.1f}"
+               f"{'' if self.asymptotic else ', before the asymptotic range: an over-estimate'}"
+               if self.observed else f"assumed rate {self.rate:.1f}")
+        lv = "/".join(str(n) for n in self.levels)
+        tol = f"; tolerance {self.rtol:.0e} {'met' if self.met else 'NOT MET'}" if self.rtol else ""
+        rel = "" if self.reliable else "; UNRELIABLE: " + (
+            "coarser solve does not resolve the relevant modes" if not self.resolved
+            else "needs three levels")
+        return (f"peaks {self.peak:.1e}, histories {self.history:.1e} (time elements {lv}, {how}"
+                f"{tol}{rel})")
+
+
+def observed_rate(levels, diffs) -> float:
+    """Convergence rate from the differences ``diffs = (|q1 - q0|, |q2 - q1|)`` of three levels.
+
+    Solves ``d1 / d2 = (n0^-p - n1^-p) / (n1^-p - n2^-p)`` for ``p`` (bisection on
+    ``[0, 16]``); ``nan`` when the differences do not shrink.
+    """
+    n0, n1, n2 = (float(x) for x in levels)
+    d1, d2 = (float(x) for x in diffs)
+    if not (d2 > 0.0 and d1 > d2):
+        return math.nan
+
+    def f(p):
+        return (n0 ** -p - n1 ** -p) / (n1 ** -p - n2 ** -p) - d1 / d2
+
+    lo, hi = 0.0, 16.0
+    if f(hi) < 0:
+        return hi
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if f(mid) < 0:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+def _peak_differences(fine: Observables, coarse: Observables) -> np.ndarray:
+    """Relative change of every link's peak deflection and stress, shape (n_links, 2).
+
+    The larger of the change of the peak value and the largest change of its
+    history within half a fine element of the fine peak, so that two levels
+    whose peaks agree by coincidence, or whose difference crosses zero at the
+    peak, do not pass for converged.
+    """
+    n_out = fine.deflection_history[0].shape[0] if fine.links else 1
+    half = max(1, int(round(n_out / (2.0 * fine.elements))))
+
+    def near(hf, hc, k):
+        idx = np.arange(k - half, k + half + 1) % hf.shape[0]
+        return float(np.max(np.abs(hf[idx] - hc[idx])))
+
+    out = np.zeros((len(fine.links), 2))
+    for i in range(len(fine.links)):
+        pk = abs(float(fine.deflection[i]))
+        if pk > 0:
+            out[i, 0] = max(abs(fine.deflection[i] - coarse.deflection[i]),
+                            near(fine.deflection_history[i], coarse.deflection_history[i],
+                                 int(fine.deflection_at[i]))) / pk
+        pk = abs(float(fine.stress[i]))
+        if fine.has_stress[i] and pk > 0:
+            j = int(fine.stress_station[i])
+            out[i, 1] = max(abs(fine.stress[i] - coarse.stress[i]),
+                            near(fine.stress_history[i][:, j], coarse.stress_history[i][:, j],
+                                 int(fine.stress_at[i]))) / pk
+    return out
+
+
+def _history_differences(fine: Observables, coarse: Observables) -> np.ndarray:
+    """Largest relative change over the cycle of every link's histories, shape (n_links,)."""
+    out = np.zeros(len(fine.links))
+    for i in range(len(fine.links)):
+        pairs = [(fine.deflection_history[i], coarse.deflection_history[i])]
+        if fine.has_stress[i]:
+            pairs.append((fine.stress_history[i], coarse.stress_history[i]))
+        for hf, hc in pairs:
+            scale = float(np.max(np.abs(hf)))
+            if scale > 0:
+                out[i] = max(out[i], float(np.max(np.abs(hf - hc))) / scale)
+    return out
+
+
+def _rate(n, d1, d2, assumed, order):
+    """Credited rate and whether the levels are in the asymptotic range.
+
+    Observed from three levels: up to ``order`` when it reaches
+    ``ASYMPTOTIC_FRACTION * order``, else clamped to ``[1, assumed]``.
+    """
+    if d1 is None:
+        return assumed, False
+    r = observed_rate(n, (d1, d2))
+    if not math.isfinite(r):
+        return 1.0, False
+    if r >= ASYMPTOTIC_FRACTION * order:
+        return min(r, order), True
+    return min(max(r, 1.0), assumed), False
+
+
+def estimate(levels: list[int], obs: list[Observables], *, assumed: float,
+             order: float | None = None, rtol: float | None = None) -> ErrorEstimate | None:
+    """Error estimate of the finest of the last two or three levels.
+
+    Peaks and histories each get a rate: observed from three levels (the
+    largest relative change over all links and quantities, level to level),
+    credited up to ``order`` in the asymptotic range and otherwise clamped to
+    ``[1, assumed]`` (see the module docstring), or ``assumed`` with two
+    levels. A peak's change is the larger of the change of its value and the
+    largest change of its history within half a fine element of the peak
+    (:func:`_peak_differences`).
+
+    Parameters
+    ----------
+    levels : list of int
+        Time elements, increasing; the last is the result.
+    obs : list of Observables
+        At the same output instants, one per level.
+    assumed : float
+        Rate credited to a two-level estimate, and the largest credited
+        before the asymptotic range.
+    order : float, optional
+        Order of the scheme between element ends: the largest rate credited
+        (default ``assumed``).
+    rtol : float, optional
+
+    Returns
+    -------
+    ErrorEstimate or None
+        None with a single level.
+    """
+    if len(levels) < 2:
+        return None
+    n = [float(x) for x in levels[-3:]]
+    o = obs[-3:]
+    ratio = n[-1] / n[-2]
+    pk = _peak_differences(o[-1], o[-2])
+    hi = _history_differences(o[-1], o[-2])
+    order = assumed if order is None else max(float(order), assumed)
+    if len(o) == 3:
+        p_pk, asym = _rate(n, float(_peak_differences(o[1], o[0]).max()), float(pk.max()), assumed, order)
+        h1 = float(_history_differences(o[1], o[0]).max())
+        p_hi, _ = _rate(n, h1, float(hi.max()), assumed, order)
+        r_hi = observed_rate(n, (h1, float(hi.max())))
+        # the peaks' rate alone can look asymptotic by coincidence while a badly resolved resonance
+        # still moves the histories at rate ~1 (an offset slider-crank with two flexible links: peak
+        # rate 3.8, history rate 1.4, and the next doubling changed the rod's stress 5x more than
+        # the estimate): the histories must converge at HISTORY_FRACTION of the order too
+        if asym and not (math.isfinite(r_hi) and r_hi >= HISTORY_FRACTION * order):
+            asym = False
+            p_pk = min(max(p_pk, 1.0), assumed)  # credited as before the asymptotic range
+    else:
+        p_pk = p_hi = assumed
+        asym = False
+    f_pk, f_hi = (ratio ** p_pk - 1.0) / SAFETY, (ratio ** p_hi - 1.0) / SAFETY
+    out = tuple(LinkError(link, float(pk[i, 0] / f_pk), float(pk[i, 1] / f_pk), float(hi[i] / f_hi))
+                for i, link in enumerate(o[-1].links))
+    return ErrorEstimate(out, tuple(int(x) for x in levels[-3:]), float(p_pk), len(o) == 3, rtol,
+                         float(p_hi), asymptotic=bool(asym))

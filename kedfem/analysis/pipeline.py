@@ -1,0 +1,658 @@
+"""``kf.solve(scene)``: kinematics -> assembly of the chosen effects -> periodic solve
+(-> iteration) on a sequence of time discretisations until the error estimate
+meets the scene's tolerance.
+
+One *level* is one periodic solve on ``n`` time elements of the scene's
+scheme (:mod:`kedfem.solvers.schemes`): the motion at the scheme's instants, the
+effects assembled there, the linear periodic solve, or the non-linear
+iteration when a chosen effect depends on the elastic state. A
+tolerance-driven solve (``Scene.steps`` not given) starts coarse and refines
+until the estimate of every flexible link's peak deflection and stress meets
+``Scene.rtol`` (:mod:`kedfem.analysis.accuracy`); with ``steps`` given, two coarser
+levels (``steps / 4`` and ``steps / 2``) provide the estimate. The result is
+read on output instants (at least 360 per cycle, the element ends among
+them) and anywhere else through its dense output (``res.resample``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import time
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import accuracy
+from ..solvers import schemes
+from ..fe.assembly import FEModel
+from ..fe.effects import Assembler, ModalDamping
+from ..errors import AccuracyWarning, InputError
+from ..motion.kinematics import Cycle, kinematics
+from ..fe.modal_damping import DampingField
+from ..solvers.nonlinear import fixed_point, fixed_point_or_anderson
+from ..solvers.periodic import _blas_one_thread
+from .results import PeriodicResult, Sampler, Stability, Timings, stability_verdict
+from .scene import MAX_STEPS, Scene
+
+__all__ = ["solve", "assemble_scene", "START_ELEMENTS", "OUTPUT_STEPS"]
+
+log = logging.getLogger(__name__)
+
+#: above this many bytes for the (n, N, N) matrices of a linear scene, assemble chunk by chunk
+STREAM_BYTES = 400e6
+#: least number of output instants per cycle (1 degree of crank)
+OUTPUT_STEPS = 360
+#: tolerance of the non-linear iteration on the levels of a tolerance-driven solve,
+#: as a fraction of ``rtol`` (the last level goes on to the scene's ``eps``)
+COARSE_EPS = 0.1
+#: time elements of the first level of a tolerance-driven solve, per scheme (doubled
+#: until the elements resolve the relevant modes, see ``_Run.resolution``)
+START_ELEMENTS = {"radau3": 12, "radau2": 16, "gauss3": 12, "gauss2": 16, "magnus2": 45,
+                  "foh": 45, "zoh": 90, "fourier": 17}
+#: largest ``omega h`` at which a level counts as resolving a mode (one element per period)
+RESOLVE_OMEGA_H = 2.0 * math.pi
+#: instants of the cycle where the modal frequency bands are sampled
+BAND_INSTANTS = 12
+#: modes whose per-cycle decay lies within this of the least damped one's (natural logarithm)
+#: must keep their multipliers to rtol (:meth:`_Run.stability_floor`)
+STAB_MARGIN = 0.25
+#: a level with at least this many instants takes modal damping from the cycle's
+#: interpolated field (:class:`kedfem.fe.modal_damping.DampingField`, built once, at least
+#: 64 exact samples) instead of an eigenproblem per instant
+FIELD_INSTANTS = 256
+#: a DOF is stiff for the exact split of the exponential holds when the links' axial
+#: stiffness carries at least this share of its diagonal stiffness at every instant
+AXIAL_SHARE = 0.9
+
+
+class _Chunks:
+    """Lazy per-chunk assembly for the streaming periodic solver (M, C, K, Q callables)."""
+
+    def __init__(self, asm: Assembler):
+        self.asm = asm
+        self._idx = None
+        self._terms = None
+
+    def _get(self, idx):
+        idx = np.asarray(idx)
+        if self._idx is None or self._idx.shape != idx.shape or not np.array_equal(self._idx, idx):
+            self._terms = self.asm.system(idx)
+            self._idx = idx.copy()
+        return self._terms
+
+    def M(self, idx):
+        return self._get(idx).M
+
+    def C(self, idx):
+        return self._get(idx).C
+
+    def K(self, idx):
+        return self._get(idx).K
+
+    def Q(self, idx):
+        return self._get(idx).Q
+
+
+def _constant_or_sampled(X: np.ndarray) -> np.ndarray:
+    """``X[0]`` when every instant holds exactly the same matrix, else ``X``.
+
+    A time-invariant scene (every body translating, or none moving) then takes
+    the solvers' constant-matrix path: one exponential (or one stage
+    factorisation) instead of one per element.
+    """
+    if X.ndim == 3 and X.shape[0] > 1 and np.array_equal(X, np.broadcast_to(X[0], X.shape)):
+        return X[0]
+    return X
+
+
+def assemble_scene(scene: Scene, steps: int | None = None):
+    """Kinematics, FE model and assembler of a scene at equally spaced nodes (no solve).
+
+    Parameters
+    ----------
+    scene : Scene
+    steps : int, optional
+        Nodes ``k T / steps`` (default ``scene.steps``, or 360).
+
+    Returns
+    -------
+    motion : Motion
+    model : FEModel
+    assembler : Assembler
+    """
+    n = steps if steps is not None else (scene.steps or OUTPUT_STEPS)
+    motion = kinematics(scene.mech, steps=n)
+    model = FEModel(scene.mech, reduction=scene.reduction)
+    asm = Assembler(model, motion, scene.effects, damping=scene.damping)
+    return motion, model, asm
+
+
+@dataclass
+class _Level:
+    """One periodic solve of the refinement sequence."""
+
+    n: int
+    discrete: schemes.Discrete
+    converged: bool
+    iterations: int
+    history: tuple
+    kinematics: float
+    assembly: float
+    solve: float
+    caught: list
+
+
+def solve(scene: Scene) -> PeriodicResult:
+    """Periodic steady-state elastic response of a scene, with its error estimate.
+
+    Assembles exactly the scene's effects at the instants the time scheme
+    needs, solves the periodic problem, iterates (the paper's Eq. 21
+    criterion) only when a chosen effect depends on the elastic state, and
+    refines the time elements until the estimated error of every flexible
+    link's peak deflection and stress meets ``scene.rtol`` (or, with
+    ``scene.steps`` given, solves on that many and estimates the error from
+    two coarser solves).
+
+    Parameters
+    ----------
+    scene : Scene
+
+    Returns
+    -------
+    PeriodicResult
+        With ``res.error`` (:class:`~kedfem.analysis.accuracy.ErrorEstimate`).
+
+    Raises
+    ------
+    KinematicsError, MobilityError
+        The linkage cannot run through its cycle.
+    ResonanceError
+        ``I - Phi`` singular (undamped resonance or a free rigid-body mode).
+    SingularMassError
+        Massless DOFs.
+
+    Warns
+    -----
+    AccuracyWarning
+        The estimate exceeds ``scene.rtol`` (fixed ``steps``, or the largest
+        number of elements reached).
+    ConvergenceWarning
+        The non-linear iteration of the result did not meet ``scene.eps``.
+    InstabilityWarning
+        A Floquet multiplier lies outside the unit circle.
+    """
+    if not isinstance(scene, Scene):
+        raise InputError(f"solve: expected a kf.Scene, got {type(scene).__name__}")
+    # one BLAS thread: the batched small-matrix work (eigh of the modal
+    # damping, products, the periodic solve) ran 10-40x slower on OpenBLAS's
+    # threads whenever the other core was busy (benchmarks/peers.py)
+    with _blas_one_thread():
+        return _Run(scene).run()
+
+
+def undamped(scene: Scene) -> bool:
+    """The scene dissipates no energy: no damping model (or a zero one) and no friction."""
+    from ..fe.effects import ModalDamping, Rayleigh
+    d = scene.damping
+    if isinstance(d, ModalDamping) and d.zeta > 0:
+        return False
+    if isinstance(d, Rayleigh) and (d.alpha > 0 or d.beta > 0):
+        return False
+    if "loads" in scene.effects and scene.mech.frictions:
+        return False
+    return True
+
+
+def _coarser(scheme, n: int) -> int | None:
+    """The level whose refinement is ``n`` (None below the scheme's minimum)."""
+    for m in range(max(scheme.min_elements, n // 2 - 1), n):
+        if scheme.refine(m) == n:
+            return m
+    return None
+
+
+class _Run:
+    """The levels of one solve and their observables on common output instants."""
+
+    def __init__(self, scene: Scene):
+        self.t0 = time.perf_counter()
+        self.scene = scene
+        self.cycle = Cycle(scene.mech)
+        self.model = FEModel(scene.mech, reduction=scene.reduction)
+        self.scheme = schemes.get(scene.scheme)
+        self.stiff = None
+        if isinstance(self.scheme, (schemes.ExponentialHold, schemes.Fourier)) and scene.stiff_split:
+            # the directions a link's axial stiffness holds throughout the cycle
+            motion = self.cycle.at(np.arange(72) * (scene.period / 72))
+            share = Assembler(self.model, motion, (), damping=None).axial_share()
+            self.stiff = share.min(axis=0) >= AXIAL_SHARE
+        self.levels: list[_Level] = []
+        self._field = None
+        self._bands = None
+        self._stab_need, self._stab_f = 0, 0.0
+        self._continue = None
+        self._grids: dict[int, tuple] = {}
+        self._obs: dict[tuple[int, int], accuracy.Observables] = {}
+        self.t_setup = time.perf_counter() - self.t0
+
+    def damping_field(self) -> DampingField | None:
+        """The scene's modal damping over the cycle (built once; None for other damping)."""
+        sc = self.scene
+        if not isinstance(sc.damping, ModalDamping):
+            return None
+        if self._field is None:
+            def exact(t):
+                asm = Assembler(self.model, self.cycle.at(t), (), damping=sc.damping)
+                return asm._damping(*asm.structural())
+
+            self._field = DampingField(exact, sc.period)
+        return self._field
+
+    # ---------------------------------------------------------------- levels
+    def level(self, n: int, eps: float | None = None) -> _Level:
+        """Solve on ``n`` time elements (warm start from the previous level).
+
+        ``eps``: tolerance of the non-linear iteration on this level (default
+        the scene's); :meth:`finish` tightens the last level to the scene's.
+        """
+        sc, scheme = self.scene, self.scheme
+        eps = sc.eps if eps is None else max(eps, sc.eps)
+        self._continue = None
+        period = sc.period
+        ta = time.perf_counter()
+        ti = scheme.instants(n, period)
+        motion = self.cycle.at(ti)
+        tb = time.perf_counter()
+        field = self.damping_field() if ti.size >= FIELD_INSTANTS else None
+        asm = Assembler(self.model, motion, sc.effects, damping=sc.damping, damping_field=field)
+        N = self.model.n_dof
+        opts = {"delta": sc.delta} if sc.delta is not None else {}
+        if self.stiff is not None:
+            opts["stiff"] = self.stiff
+        state = asm.state_dependent
+        caught: list = []
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            if not state and 3 * ti.size * N * N * 8 > STREAM_BYTES:
+                ch = _Chunks(asm)
+                tc = time.perf_counter()
+                d = scheme.solve(ch.M, ch.C, ch.K, ch.Q, period, n, **opts)
+                converged, iters, hist = True, 1, ()
+            else:
+                terms = asm.system()
+                tc = time.perf_counter()
+                if state:
+                    def G(U, V, it):
+                        dC, dK, dQ = asm.state_terms(U, V)
+                        dd = scheme.solve(terms.M, terms.C, terms.K, terms.Q, period, n,
+                                          dC=dC, dK=dK, dQ=dQ, **opts)
+                        return (dd,) + dd.instant_states()
+
+                    # warm start from the previous level only if its iteration converged: a coarse
+                    # level's diverged iterate (|mu| = 585 at 24 elements) sent every finer level
+                    # off to overflow, where each converges from the linear start
+                    prev = self.levels[-1] if self.levels else None
+                    x0 = prev.discrete.at(ti) if prev is not None and prev.converged else None
+                    d, hist, converged, method = fixed_point_or_anderson(
+                        G, ti.size, N, period, eps=eps, max_iter=sc.max_iter, method=sc.nonlinear_method,
+                        x0=x0)
+                    iters, hist = len(hist), tuple(float(h) for h in hist)
+                    if eps > sc.eps:  # what finish() needs to go on to the scene's eps
+                        self._continue = (G, ti.size, N, period, method)
+                else:
+                    M, C, K = (_constant_or_sampled(X) for X in (terms.M, terms.C, terms.K))
+                    d = scheme.solve(M, C, K, terms.Q, period, n, **opts)
+                    converged, iters, hist = True, 1, ()
+        td = time.perf_counter()
+        lv = _Level(n, d, bool(converged), int(iters), hist, tb - ta, tc - tb, td - tc, list(caught))
+        log.info("%s: level n=%d (%s) %d iteration(s) rho=%.4g %.3f s", sc.mech.name, n, scheme.name,
+                 iters, d.spectral_radius, td - ta)
+        self.levels.append(lv)
+        return lv
+
+    def finish(self) -> None:
+        """Iterate the last level on to the scene's ``eps`` if it was solved looser."""
+        if self._continue is None:
+            return
+        sc = self.scene
+        G, n_i, N, period, method = self._continue
+        lv = self.levels[-1]
+        t0 = time.perf_counter()
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            d, hist, converged, _msg = fixed_point(
+                G, n_i, N, period, eps=sc.eps, max_iter=sc.max_iter,
+                method=method, x0=lv.discrete.instant_states())
+        self.levels[-1] = dataclasses.replace(
+            lv, discrete=d, converged=bool(converged), iterations=lv.iterations + len(hist),
+            history=lv.history + tuple(float(h) for h in hist),
+            solve=lv.solve + time.perf_counter() - t0, caught=list(caught))
+        i = len(self.levels) - 1
+        self._obs = {k: v for k, v in self._obs.items() if k[0] != i}
+        self._continue = None
+
+    def resolution(self) -> tuple[int, float]:
+        """Fewest time elements that resolve the modes the drive can excite.
+
+        An L-stable scheme damps the resonant response and the free vibration
+        of modes its elements do not resolve, alike at every coarse level, so
+        two such levels can agree while both are wrong: the coarser levels of
+        an error estimate must resolve (``omega h <= RESOLVE_OMEGA_H``) every
+        mode the drive excites. The excitation reaches (a) the highest
+        harmonic of the rigid-body motion above ``rtol / 1000`` of its
+        largest (the inertia loads and the time variation of ``M, C, K``),
+        (b) ``1 / (pi tau)`` of the fastest friction reversal (a regularised
+        step of time scale ``tau``). A mode is excited when its frequency
+        band (over the cycle) starts within that reach, or within the reach
+        of the time variation around an excited mode (its band's top plus
+        (a)). Bands come from the co-moving-frame system (the scene's
+        effects, no state terms) at :data:`BAND_INSTANTS` instants.
+
+        Returns
+        -------
+        n : int
+            Fewest time elements.
+        f : float
+            Highest frequency to resolve [Hz].
+        """
+        from .modal import eig_frequencies
+        sc = self.scene
+        T = sc.period
+        t = np.arange(BAND_INSTANTS) * (T / BAND_INSTANTS)
+        asm = Assembler(self.model, self.cycle.at(t), sc.effects, damping=None, frame=True)
+        S = asm.system()
+        f = np.sort(np.abs(eig_frequencies(S.M, S.K, name=sc.mech.name, labels=self.model.dof_labels)), axis=1)  # (instants, modes), Hz
+        lo, hi = f.min(axis=0), f.max(axis=0)
+        self._bands = (lo, hi)
+        f_kin = self._motion_band(level=1e-3 * sc.rtol)
+        reach = max(f_kin, self._friction_band())
+        excited = lo <= reach
+        if excited.any():  # the time variation mixes an excited mode into its neighbours
+            excited |= lo <= float(hi[excited].max()) + f_kin
+        if not excited.any():
+            log.info("%s: no mode within the excitation (%.4g Hz): quasi-static", sc.mech.name, reach)
+            return 1, 0.0
+        f_res = float(hi[excited].max())
+        n = int(math.ceil(2.0 * math.pi * f_res * T / RESOLVE_OMEGA_H))
+        log.info("%s: excitation reaches %.4g Hz, modes to resolve up to %.4g Hz: >= %d elements",
+                 sc.mech.name, reach, f_res, n)
+        return n, f_res
+
+    def _motion_band(self, samples: int = 512, level: float = 1e-6) -> float:
+        """Highest frequency [Hz] of the rigid-body motion's harmonics above ``level``."""
+        mo = self._band_motion(samples)
+        T = self.scene.period
+        X = np.concatenate([x.reshape(samples, -1) for x in (mo.a, mo.alpha, mo.omega ** 2, mo.sdd)
+                            if x.size], axis=1)
+        F = np.abs(np.fft.rfft(X, axis=0))[1:]
+        amp = F.max(axis=0)
+        keep = amp > 1e-9 * amp.max() if amp.size and amp.max() > 0 else np.zeros(amp.shape, bool)
+        if not keep.any():
+            return 0.0
+        env = (F[:, keep] / amp[keep]).max(axis=1)
+        return float((np.flatnonzero(env > level).max() + 1) / T)
+
+    def _band_motion(self, samples: int):
+        """The rigid-body motion at ``samples`` equally spaced instants (computed once)."""
+        cache = self.__dict__.setdefault("_band_cache", {})
+        if samples not in cache:
+            cache[samples] = self.cycle.at(np.arange(samples) * (self.scene.period / samples))
+        return cache[samples]
+
+    def _friction_band(self, samples: int = 512) -> float:
+        """``1 / (pi tau)`` [Hz] of the fastest reversal of the mechanism's friction forces.
+
+        A force ``-F tanh((v . axis - v_ref) / s)`` reverses where the
+        rigid-body velocity crosses ``v_ref``, over ``tau = s / |a . axis|``
+        (``a`` the larger of its values at the two samples around the
+        crossing: the acceleration is smooth on the scale of a sample).
+        """
+        mech = self.scene.mech
+        if not mech.frictions or "loads" not in self.scene.effects:
+            return 0.0
+        mo = self._band_motion(samples)
+        out = 0.0
+        for fr in mech.frictions.values():
+            ax = np.asarray(fr.axis, dtype=float)
+            ax = ax / np.linalg.norm(ax)
+            j = mo.joint_names.index(fr.joint)
+            v = mo.v[:, j] @ ax - fr.reference_speed
+            a = np.abs(mo.a[:, j] @ ax)
+            cross = np.flatnonzero(np.sign(v) != np.sign(np.roll(v, -1)))
+            if cross.size:
+                a_c = np.maximum(a[cross], np.roll(a, -1)[cross])
+                out = max(out, float(a_c.max()) / (math.pi * fr.smoothing))
+        return out
+
+    def stability_floor(self) -> tuple[int, float]:
+        """Fewest time elements whose numerical damping leaves the spectral radius within ``rtol``.
+
+        An L-stable scheme damps every mode a little per element (Radau IIA:
+        ``-ln|R(i y)| ~ y^6 / 7200`` at ``y = omega h``), so a mode with many
+        periods per cycle loses ``n (omega T / n)^6 / 7200`` of its multiplier's
+        modulus on ``n`` elements even when the response is resolved (a
+        105 Hz mode of a linkage at 300 rpm on 48 elements: a factor 5). The
+        scheme only lowers multipliers, so the spectral radius is right to
+        ``rtol`` when the modes that set it lose less than that: the modes
+        whose physical decay per cycle ``exp(-zeta omega T)`` lies within
+        :data:`STAB_MARGIN` (in its logarithm) of the least damped one, with
+        ``zeta`` from the scene's damping (modal ratio; Rayleigh ``alpha /
+        (2 omega) + beta omega / 2``). Returns the elements and the highest such
+        frequency [Hz]; ``(0, 0)`` for schemes without numerical damping and for
+        undamped scenes (whose verdict is ``marginal`` by structure).
+        """
+        from ..fe.effects import ModalDamping, Rayleigh
+        sc, scheme = self.scene, self.scheme
+        if not scheme.l_stable or self._bands is None or undamped(sc):
+            return 0, 0.0
+        lo, hi = self._bands
+        T = sc.period
+        w_lo, w_hi = 2.0 * math.pi * lo, 2.0 * math.pi * hi
+        d = sc.damping
+        if isinstance(d, ModalDamping):
+            zeta = np.full(lo.shape, float(d.zeta))
+        elif isinstance(d, Rayleigh):
+            zeta = d.alpha / (2.0 * np.maximum(w_lo, 1e-300)) + d.beta * w_lo / 2.0
+        else:
+            zeta = np.zeros(lo.shape)
+        decay = -zeta * w_lo * T  # ln of the physical multiplier modulus per cycle
+        keep = (w_lo > 0) & (decay >= decay.max() - STAB_MARGIN)
+        if not keep.any():
+            return 0, 0.0
+        theta = w_hi[keep] * T
+        tol = sc.rtol if sc.rtol is not None else 1e-3
+        tab = scheme.tableau
+
+        def loss(n):
+            y = theta / n
+            z = 1j * y[:, None, None]
+            s_ = tab.A.shape[0]
+            stage = np.linalg.solve(np.eye(s_)[None] - z * tab.A[None], np.ones((y.size, s_, 1)))[..., 0]
+            Rz = 1.0 + z[:, 0, 0] * (stage @ tab.b)
+            return float(np.max(-n * np.log(np.abs(Rz))))
+
+        lo_n, n = 1, max(scheme.min_elements, 8)
+        while loss(n) > tol and n < MAX_STEPS:
+            lo_n, n = n, 2 * n
+        while n - lo_n > 1:  # the fewest: bisection (the loss falls monotonically with n)
+            mid = (lo_n + n) // 2
+            lo_n, n = (lo_n, mid) if loss(mid) <= tol else (mid, n)
+        return n, float(hi[keep].max())
+
+    # ----------------------------------------------------------- output grid
+    @staticmethod
+    def output_steps(n: int) -> int:
+        """Output instants for ``n`` elements: a multiple of ``n``, at least :data:`OUTPUT_STEPS`."""
+        return n * max(1, -(-OUTPUT_STEPS // n))
+
+    def _grid(self, n_out: int):
+        g = self._grids.get(n_out)
+        if g is None:
+            t = np.arange(n_out) * (self.scene.period / n_out)
+            g = self._grids[n_out] = (t, self.cycle.at(t), {})
+        return g
+
+    def stability(self, error=None) -> Stability:
+        """Spectral radius of the finest level, its error from the coarser ones, the verdict."""
+        rho = [lv.discrete.spectral_radius for lv in self.levels[-3:]]
+        err = None
+        if len(rho) >= 2 and error is not None:
+            ratio = self.levels[-1].n / self.levels[-2].n
+            err = abs(rho[-1] - rho[-2]) / (ratio ** error.rate - 1.0)
+        verdict = stability_verdict(rho[-1], err)
+        if (verdict == "marginal" and len(rho) >= 2 and rho[-1] > 1.0 + 1e-9
+                and (min(rho[-2:]) > 1.0 + 1e-9 or rho[-1] >= rho[-2])
+                and self.scheme.name.startswith("radau")):
+            # Radau's numerical damping lowers the multipliers, the less the finer the level:
+            # growth on the two finest levels, or growth that rises with refinement, is real
+            # (a buckling rod: 1e51 on 48 elements, its change from 24 as large)
+            verdict = "unstable"
+        note = ""
+        if undamped(self.scene) and verdict != "unstable":
+            verdict = "marginal"
+            note = ("undamped: the multipliers of a conservative scene lie on the unit circle unless a "
+                    "parametric resonance makes them grow; the scheme's numerical damping can hide a weak one")
+        elif self._stab_need and self.levels[-1].n < self._stab_need:
+            note = (f"{self.levels[-1].n} time elements damp the modes up to {self._stab_f:.4g} Hz numerically "
+                    f"by more than {self.scene.rtol or 1e-3:.0e} per cycle: the spectral radius is too low "
+                    f"(resolved from {self._stab_need} elements)")
+        return Stability(rho[-1], err, verdict, self.scheme.name, self.levels[-1].n, note)
+
+    def result(self, lv: _Level, n_out: int, error=None, shared_cache: bool = True,
+               stability: Stability | None = None) -> PeriodicResult:
+        """The level read on ``n_out`` equally spaced output instants."""
+        t, motion, cache = self._grid(n_out)
+        d = lv.discrete
+        U, V = d.at(t)
+        stable = stability.verdict == "stable" if stability is not None else bool(d.stable)
+        res = PeriodicResult(
+            self.scene, self.model, motion, motion.t, motion.crank_angle, U, V,
+            tuple(self.model.dof_labels), d.floquet_multipliers, stable, lv.converged,
+            lv.iterations, lv.history, float(d.residual), Timings(0.0, 0.0, 0.0, 0.0), d.method,
+            elements=lv.n, scheme=self.scheme.name, error=error, sampler=Sampler(self.cycle, d),
+            stability=stability)
+        if shared_cache:
+            # the constraint maps depend on the motion only: built once per output grid
+            if "beam_map" in cache:
+                res._cache["beam_map"] = cache["beam_map"]
+            else:
+                cache["beam_map"] = res._beam_map()
+        return res
+
+    def observe(self, i: int, n_out: int) -> accuracy.Observables:
+        key = (i, n_out)
+        if key not in self._obs:
+            self._obs[key] = self.result(self.levels[i], n_out).observables()
+        return self._obs[key]
+
+    def estimate(self, n_out: int, need: int = 0) -> accuracy.ErrorEstimate | None:
+        """Estimate of the finest level from the last two or three (``need``: resolution floor)."""
+        k = len(self.levels)
+        if k < 2:
+            return None
+        idx = list(range(max(0, k - 3), k))
+        obs = [self.observe(i, n_out) for i in idx]
+        est = accuracy.estimate([self.levels[i].n for i in idx], obs,
+                                assumed=accuracy.ASSUMED_RATE.get(self.scheme.name, 1.0),
+                                order=self.scheme.dense_order, rtol=self.scene.rtol)
+        # the exponential holds integrate frozen data exactly (no numerical damping or aliasing)
+        resolved = isinstance(self.scheme, schemes.ExponentialHold) or self.levels[idx[-2]].n >= need
+        return dataclasses.replace(est, resolved=bool(resolved))
+
+    # ------------------------------------------------------------------- run
+    def run(self) -> PeriodicResult:
+        sc, scheme = self.scene, self.scheme
+        est = None
+        need, f_res = self.resolution() if (sc.estimate or sc.steps is None) else (0, 0.0)
+        need = int(math.ceil(need * scheme.per_period))
+        self._stab_need, self._stab_f = self.stability_floor()
+        if sc.steps is not None:
+            n = scheme.check_elements(sc.steps)
+            plan = []
+            if sc.estimate:  # the two coarser levels whose refinements lead to n
+                m = n
+                for _ in range(2):
+                    m = _coarser(scheme, m)
+                    if m is None:
+                        break
+                    plan.insert(0, m)
+            for m in plan + [n]:
+                self.level(m)
+            n_out = self.output_steps(n)
+            if sc.estimate:
+                est = self.estimate(n_out, need)
+        else:
+            # double from a start whose second level resolves the relevant modes; the
+            # estimate needs three levels (an observed rate) before it is believed
+            n = max(START_ELEMENTS.get(scheme.name, 24), scheme.min_elements)
+            while scheme.refine(n) < need and scheme.refine(scheme.refine(n)) <= MAX_STEPS:
+                n = scheme.refine(n)
+            # the levels' non-linear iteration stops at a tenth of rtol (their differences
+            # are of the order of rtol); the last one then goes on to the scene's eps
+            eps_level = max(sc.eps, COARSE_EPS * sc.rtol) if sc.rtol is not None else sc.eps
+            believed = False
+            while True:
+                lv = self.level(n, eps=eps_level)
+                failed = 0
+                for prev in reversed(self.levels):
+                    if prev.converged:
+                        break
+                    failed += 1
+                if failed >= 3 or (failed >= 2 and self.levels[-2].n >= need):
+                    # refining the time discretisation does not make a non-linear iteration
+                    # converge: two resolved levels, or three, that fail end the refinement
+                    log.warning("%s: the non-linear iteration does not converge on %s time elements; "
+                                "not refining further", sc.mech.name,
+                                "/".join(str(x.n) for x in self.levels[-failed:]))
+                    break
+                if len(self.levels) >= 3:
+                    est = self.estimate(self.output_steps(n), need)
+                    # before the asymptotic range the estimate is loose (over): refine on; and
+                    # on until the scheme's numerical damping leaves the spectral radius right.
+                    # Once a level was in the asymptotic range and met rtol, the finer levels the
+                    # stability floor asks for need only meet it: their differences sink toward
+                    # the read-out noise (~1e-7), whose rates say nothing (four-bar at rtol 1e-5:
+                    # 384 met and asymptotic, 768 at rate 2.49, and on to 1536 for nothing)
+                    if est.met and est.asymptotic:
+                        believed = True
+                    if est.met and (est.asymptotic or believed) and n >= self._stab_need:
+                        break
+                if scheme.refine(n) > MAX_STEPS:
+                    break
+                n = scheme.refine(n)
+            if self._continue is not None:
+                self.finish()
+                if len(self.levels) >= 3:
+                    est = self.estimate(self.output_steps(self.levels[-1].n), need)
+            n_out = self.output_steps(self.levels[-1].n)
+            if est is None and len(self.levels) >= 2:
+                est = self.estimate(n_out, need)
+        final = self.levels[-1]
+        for w in final.caught:  # warnings of the result's own solve (coarse levels' are dropped)
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        if est is not None and sc.rtol is not None and not est.met:
+            how = (f"{final.n} time elements (steps given)" if sc.steps is not None
+                   else f"the largest number of time elements ({final.n}, limit {MAX_STEPS})")
+            if est.peak > sc.rtol:
+                why = f"estimated error of the peaks {est.peak:.1e} exceeds rtol = {sc.rtol:.0e}"
+            elif not est.resolved:
+                why = (f"estimated error of the peaks {est.peak:.1e} cannot be trusted: the coarser "
+                       f"levels do not resolve the modes up to {f_res:.4g} Hz the drive excites "
+                       f"(they need >= {need} time elements)")
+            else:
+                why = (f"estimated error of the peaks {est.peak:.1e} cannot be trusted: no "
+                       f"convergence rate observed over three levels")
+            warnings.warn(f"{sc.mech.name}: {why}, with {how}", AccuracyWarning, stacklevel=3)
+        res = self.result(final, n_out, error=est, stability=self.stability(est))
+        total = time.perf_counter() - self.t0
+        kin = self.t_setup + sum(lv.kinematics for lv in self.levels)
+        asm = sum(lv.assembly for lv in self.levels)
+        slv = sum(lv.solve for lv in self.levels)
+        object.__setattr__(res, "timings", Timings(kin, asm, slv, total))
+        log.info("%s: %s, %s levels %s, converged=%s stable=%s %.3f s", sc.mech.name, scheme.name,
+                 len(self.levels), [lv.n for lv in self.levels], final.converged,
+                 res.stable, total)
+        return res

@@ -1,0 +1,825 @@
+"""TOML scene files: a scene as data, validated key by key.
+
+A scene file is read with the standard library's :mod:`tomllib`; it is data
+only, nothing in it is executed. Every value is checked before anything is
+computed, and every problem raises :class:`SceneFileError` (an
+:class:`~kedfem.errors.InputError`) whose message names the file, the line
+(found by scanning the file text, since :mod:`tomllib` reports no positions
+for values) and the key. Unknown keys are errors, with a "did you mean"
+suggestion, never silently ignored.
+
+Layout (every key is optional except ``mechanism.name``; units in the key
+names or in brackets)::
+
+    name = "slider-crank at 1000 rpm"   # label used in reports
+    accuracy = "default"                # "fast" | "default" | "tight": rtol 1e-2 / 1e-3 / 1e-5
+    rtol = 1e-3                         # tolerance on every link's peak deflection and stress
+    speed_rpm = 1000.0                  # speed of the first drive [rev/min]
+    effects = ["inertia", "coupling"]   # or "all"
+    # method = "auto"                   # time scheme: auto | radau3 | radau2 | gauss3 | gauss2
+                                        #   | magnus2 | foh | zoh (kedfem.solvers.schemes)
+    # steps = 180                       # fixed number of time elements, 3 .. MAX_STEPS (experts)
+    # hold = "foh"                      # = method for the exponential holds zoh | foh | magnus2
+
+    [mechanism]
+    name = "slider_crank"               # mechanisms.available()
+    elements = 8                        # any parameter of the mechanism (SI units)
+
+    [damping]
+    model = "rayleigh"                  # "rayleigh" | "modal" | "none"
+    alpha = 0.0                         # [1/s]
+    beta = 3e-5                         # [s]
+    # zeta = 0.02                       # modal damping ratio [-]
+
+    [solver]
+    eps = 1e-6                          # Eq. 21 tolerance (fraction)
+    max_iter = 50
+    nonlinear_method = "anderson"       # "fixed-point" | "relaxation" | "anderson"
+    # delta = 1e-12                     # accuracy of each matrix exponential
+
+    [output]
+    dir = "kedfem-out"                  # relative to the working directory
+    plots = true
+    csv = true
+    npz = true
+    vtk = true
+    render = false
+    modes = 4                           # mode shapes exported (0: none)
+    scale = "auto"                      # deformation scale of the VTK points
+    every = 1                           # write every k-th time node to VTK
+    dofs = []                           # DOF labels to plot ([]: automatic)
+
+    [sweep]                             # only read by ``kedfem sweep``
+    speed_rpm = [500, 1000, 1500]
+    "mechanism.elements" = [4, 8]
+
+The defaults of ``effects``, ``damping`` and the solver knobs depend on the
+mechanism (:data:`PRESETS`); ``kedfem list`` prints them. Without ``steps``
+the solve picks the number of time elements that meets ``rtol`` (from
+``accuracy``, :data:`kedfem.analysis.scene.ACCURACY_PRESETS`); keys given in the file
+win over the presets.
+"""
+
+from __future__ import annotations
+
+import copy
+import inspect
+import itertools
+import logging
+import math
+import re
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from ..fe.effects import EFFECTS, LINEAR_EFFECTS, ModalDamping, Rayleigh
+from ..errors import InputError, KedError, did_you_mean
+from ..analysis.scene import ACCURACY_PRESETS, HOLDS, MAX_STEPS, NONLINEAR_METHODS, Scene
+
+__all__ = ["SceneFileError", "Outputs", "Preset", "PRESETS", "SceneSpec", "load_scene", "load_sweep",
+           "load_spec", "read_scene_file", "scene_from_dict", "parse_scene", "with_overrides", "mechanism_parameters",
+           "preset", "MAX_STEPS", "MAX_ELEMENTS", "MAX_ITER", "MAX_MODES", "MAX_SWEEP_POINTS", "RPM",
+           "check_steps", "grid_points", "grid_size", "describe_damping", "scene_summary"]
+
+log = logging.getLogger(__name__)
+
+#: rad/s per rev/min
+RPM = 2.0 * math.pi / 60.0
+
+#: Largest number of frame elements per link (cost grows with the cube of the DOF count).
+MAX_ELEMENTS = 200
+#: Largest ``solver.max_iter`` (each iteration is a full periodic solve).
+MAX_ITER = 1_000
+#: Largest number of exported mode shapes.
+MAX_MODES = 24
+#: Largest number of points of a sweep grid.
+MAX_SWEEP_POINTS = 10_000
+#: Largest scene file [bytes] (scene files are a few hundred bytes).
+MAX_FILE_BYTES = 1_000_000
+#: Mechanism parameters that may be negative (angles, coordinates, heights, signed speeds);
+#: every other numeric mechanism parameter must be >= 0.
+SIGNED_PARAMETERS = frozenset({"crank_angle", "o6", "leaf_height", "casting_speed"})
+
+
+class SceneFileError(InputError):
+    """A bad scene file or scene dictionary.
+
+    Attributes
+    ----------
+    key : str or None
+        Dotted key of the offending value (``"damping.beta"``); in the
+        message, parts that are not bare TOML keys are quoted.
+    path : str or None
+        File (or ``"command line"``) the value came from.
+    line : int or None
+        1-based line of the key in the file, when it could be found.
+    reason : str
+        The message without the location prefix.
+    """
+
+    def __init__(self, reason: str, *, key: str | None = None, path: str | None = None,
+                 line: int | None = None):
+        self.key, self.path, self.line, self.reason = key, path, line, reason
+        where = ""
+        if path:
+            where = f"{path}:{line}: " if line else f"{path}: "
+        elif line:
+            where = f"line {line}: "
+        super().__init__(f"{where}{_keyfmt(key)}: {reason}" if key else f"{where}{reason}")
+
+
+# ------------------------------------------------------------------ presets
+@dataclass(frozen=True)
+class Preset:
+    """Defaults a scene file inherits from its mechanism when it omits a key.
+
+    ``solver`` holds ``(key, value)`` pairs of :class:`~kedfem.analysis.scene.Scene`
+    solver arguments (``eps``, ``max_iter``, ``nonlinear_method``, ``delta``).
+    ``steps`` None: tolerance-driven.
+    """
+
+    steps: int | None
+    effects: tuple[str, ...]
+    damping: Rayleigh | ModalDamping | None
+    hold: str | None = None
+    solver: tuple[tuple[str, Any], ...] = ()
+
+
+_LINEAR = LINEAR_EFFECTS
+_ACTUAL_AXIAL = _LINEAR + ("geometric_nonlinearity",)
+
+#: Per-mechanism defaults of ``effects``, ``damping`` and the solver knobs (the
+#: number of time elements follows from the tolerance). The mould
+#: oscillator's preset is read from :func:`kedfem.analysis.defaults.default_scene` (see
+#: :func:`preset`). The four-bar and six-bar, whose flexible links meet at pins,
+#: take ``geometric_nonlinearity``: the axial forces that stiffen their links are
+#: the actual (elastic) ones, which near resonance differ from the kinetostatic
+#: ones; without it their peaks are 1-2.4 % (four-bar) and 0.1 % (six-bar) off the
+#: geometrically exact model (benchmarks/exact_comparison.py), with it 0.01 %. On
+#: the slider-crank the difference is 0.09 %, under the default tolerance.
+PRESETS: dict[str, Preset] = {
+    "slider_crank": Preset(None, _LINEAR, ModalDamping(0.02)),
+    "four_bar": Preset(None, _ACTUAL_AXIAL, ModalDamping(0.02)),
+    "six_bar": Preset(None, _ACTUAL_AXIAL, ModalDamping(0.02)),
+    "exciter": Preset(None, ("inertia", "coupling", "springs"), ModalDamping(0.02)),
+}
+_FALLBACK = Preset(None, ("inertia", "coupling"), ModalDamping(0.02))
+
+
+def preset(mechanism: str) -> Preset:
+    """Defaults of a mechanism's scenes.
+
+    For ``mould_oscillator`` they are those of the built-in default scene
+    (:func:`kedfem.analysis.defaults.default_scene`), so ``[mechanism] name =
+    "mould_oscillator"`` alone is that scene.
+    """
+    key = str(mechanism).replace("-", "_")
+    if key == "mould_oscillator":
+        from ..analysis.defaults import default_scene
+        sc = default_scene()
+        return Preset(sc.steps, sc.effects, sc.damping, sc.hold,
+                      (("eps", sc.eps), ("max_iter", sc.max_iter), ("nonlinear_method", sc.nonlinear_method),
+                       ("delta", sc.delta)))
+    return PRESETS.get(key, _FALLBACK)
+
+
+def mechanism_parameters(module) -> dict[str, Any]:
+    """Parameters (name -> default) a mechanism module's ``build`` accepts.
+
+    ``DEFAULTS`` when the module has it, else the keyword defaults of ``build``.
+    """
+    d = getattr(module, "DEFAULTS", None)
+    if isinstance(d, Mapping):
+        return dict(d)
+    out = {}
+    for p in inspect.signature(module.build).parameters.values():
+        if p.default is not inspect.Parameter.empty:
+            out[p.name] = p.default
+    return out
+
+
+# ------------------------------------------------------------------ outputs
+@dataclass(frozen=True)
+class Outputs:
+    """What a run writes, and where (the ``[output]`` table).
+
+    Attributes
+    ----------
+    dir : Path
+        Output folder (relative paths: to the working directory).
+    plots, csv, npz, vtk, render : bool
+        PNG plots; CSV tables; an NPZ archive; the VTK/PVD series with mode
+        shapes; a pyvista PNG render of the deformed mechanism.
+    modes : int
+        Mode shapes exported to VTK (0: none).
+    scale : float or None
+        Deformation scale of the VTK points (None: automatic, see
+        :func:`kedfem.io.export.auto_scale`).
+    every : int
+        Write every ``every``-th time node to the VTK series.
+    dofs : tuple of str
+        DOF labels for the displacement plot (empty: the largest ones).
+    """
+
+    dir: Path = Path("kedfem-out")
+    plots: bool = True
+    csv: bool = True
+    npz: bool = True
+    vtk: bool = True
+    render: bool = False
+    modes: int = 4
+    scale: float | None = None
+    every: int = 1
+    dofs: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class SceneSpec:
+    """A parsed scene file: the scene, its outputs and its sweep axes (dotted key -> values)."""
+
+    scene: Scene
+    outputs: Outputs
+    sweep: dict[str, tuple]
+    data: dict
+
+
+# ------------------------------------------------------------ key locations
+_QUOTED = r"""(?:"(?:[^"\\]|\\.)*"|'[^']*')"""
+_PART = rf"(?:[A-Za-z0-9_\-]+|{_QUOTED})"
+_DOTTED = rf"{_PART}(?:\s*\.\s*{_PART})*"
+_HEADER = re.compile(rf"^\s*\[\[?\s*(?P<name>{_DOTTED})\s*\]\]?\s*(#.*)?$")
+_KEY = re.compile(rf"^\s*(?P<key>{_DOTTED})\s*=")
+_INLINE_KEY = re.compile(rf"(?:[{{,]\s*)(?P<key>{_DOTTED})\s*=")
+
+
+def _split_dotted(s: str) -> tuple[str, ...]:
+    """Parts of a TOML dotted key as written (quoted parts unescaped by tomllib)."""
+    try:
+        d = tomllib.loads(f"{s} = 0")
+    except tomllib.TOMLDecodeError:
+        return tuple(p.strip().strip("\"'") for p in s.split("."))
+    parts = []
+    while isinstance(d, dict) and len(d) == 1:
+        k, d = next(iter(d.items()))
+        parts.append(k)
+    return tuple(parts)
+
+
+def _keyfmt(key: str) -> str:
+    """A dotted key for messages: parts that are not bare TOML keys are quoted and escaped."""
+    import json
+    return ".".join(p if p and re.fullmatch(r"[A-Za-z0-9_\-]+", p) else json.dumps(p)
+                    for p in key.split("."))
+
+
+class _Locator:
+    """Line numbers of dotted keys, found by scanning the TOML text."""
+
+    def __init__(self, text: str):
+        self.lines: dict[str, int] = {}
+        table: tuple[str, ...] = ()
+        for i, raw in enumerate(text.splitlines(), start=1):
+            m = _HEADER.match(raw)
+            if m:
+                table = _split_dotted(m.group("name"))
+                self.lines.setdefault(".".join(table), i)
+                continue
+            m = _KEY.match(raw)
+            if m:
+                key = table + _split_dotted(m.group("key"))
+                self.lines.setdefault(".".join(key), i)
+                rest = raw[m.end():]
+                if rest.lstrip().startswith("{"):
+                    for mm in _INLINE_KEY.finditer(rest):
+                        self.lines.setdefault(".".join(key + _split_dotted(mm.group("key"))), i)
+
+    def line(self, key: str | None) -> int | None:
+        if not key:
+            return None
+        parts = key.split(".")
+        for n in range(len(parts), 0, -1):
+            ln = self.lines.get(".".join(parts[:n]))
+            if ln is not None:
+                return ln
+        return None
+
+
+class _Ctx:
+    """Where values come from, to name them in errors."""
+
+    def __init__(self, source: str | None = None, text: str | None = None, overridden=()):
+        self.source = source
+        self.locator = _Locator(text) if text else None
+        self.overridden = set(overridden)
+
+    def error(self, key: str | None, reason: str) -> SceneFileError:
+        if key is not None and any(key == o or key.startswith(o + ".") for o in self.overridden):
+            return SceneFileError(reason, key=key, path="command line")
+        line = self.locator.line(key) if self.locator else None
+        return SceneFileError(reason, key=key, path=self.source, line=line)
+
+
+_suggest = did_you_mean
+
+
+def _typename(v) -> str:
+    return {bool: "a boolean", int: "an integer", float: "a number", str: "a string", list: "an array",
+            dict: "a table"}.get(type(v), type(v).__name__)
+
+
+def _unknown(ctx: _Ctx, table: Mapping, allowed, prefix: str):
+    for k in table:
+        if k not in allowed:
+            key = f"{prefix}{k}"
+            raise ctx.error(key, f"unknown key{_suggest(k, allowed)}; allowed: {', '.join(sorted(allowed))}")
+
+
+# ----------------------------------------------------------- value checkers
+def _int(ctx, key, v, lo, hi, why=""):
+    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)):
+        raise ctx.error(key, f"must be an integer, got {_typename(v)} {v!r}")
+    if v < lo or v > hi:
+        raise ctx.error(key, f"must lie in {lo} .. {hi}{why}, got {v}")
+    return int(v)
+
+
+def _float(ctx, key, v, *, lo=None, hi=None, lo_open=False, hi_open=False, nonzero=False, unit=""):
+    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating)):
+        raise ctx.error(key, f"must be a number{unit}, got {_typename(v)} {v!r}")
+    v = float(v)
+    if not math.isfinite(v):
+        raise ctx.error(key, f"must be a finite number{unit}, got {v}")
+    bad = ((lo is not None and (v < lo or (lo_open and v == lo)))
+           or (hi is not None and (v > hi or (hi_open and v == hi))) or (nonzero and v == 0.0))
+    if bad:
+        rng = []
+        if lo is not None:
+            rng.append(f"{'>' if lo_open else '>='} {lo:g}")
+        if hi is not None:
+            rng.append(f"{'<' if hi_open else '<='} {hi:g}")
+        if nonzero:
+            rng.append("nonzero")
+        raise ctx.error(key, f"must be {' and '.join(rng)}{unit}, got {v:g}")
+    return v
+
+
+def _str(ctx, key, v, choices=None):
+    if not isinstance(v, str):
+        raise ctx.error(key, f"must be a string, got {_typename(v)} {v!r}")
+    if choices is not None and v not in choices:
+        raise ctx.error(key, f"must be one of {', '.join(choices)}{_suggest(v, choices)}, got {v!r}")
+    return v
+
+
+def _bool(ctx, key, v):
+    if not isinstance(v, bool):
+        raise ctx.error(key, f"must be true or false, got {_typename(v)} {v!r}")
+    return v
+
+
+def _table(ctx, key, v):
+    if not isinstance(v, dict):
+        raise ctx.error(key, f"must be a table ([{key}]), got {_typename(v)} {v!r}")
+    return v
+
+
+def check_steps(v, key: str = "steps", source: str | None = None) -> int:
+    """Validate a number of time nodes (3 .. :data:`MAX_STEPS`) and return it."""
+    return _int(_Ctx(source), key, v, 3, MAX_STEPS,
+                " (more nodes than this cost time and memory without changing the answer; see "
+                "kedfem.io.scenefile.MAX_STEPS)")
+
+
+# ------------------------------------------------------------------ sections
+_TOP_KEYS = ("name", "accuracy", "rtol", "method", "steps", "speed_rpm", "hold", "effects", "mechanism",
+             "damping", "solver", "output", "sweep")
+_DAMPING_KEYS = ("model", "alpha", "beta", "zeta")
+_SOLVER_KEYS = ("eps", "max_iter", "nonlinear_method", "delta")
+_OUTPUT_KEYS = ("dir", "plots", "csv", "npz", "vtk", "render", "modes", "scale", "every", "dofs")
+
+
+def _mechanism(ctx: _Ctx, data: Mapping):
+    from .. import catalogue
+    if "mechanism" not in data:
+        raise ctx.error("mechanism", "missing: a scene needs a [mechanism] table with name = one of "
+                        f"{', '.join(catalogue.available())}")
+    m = data["mechanism"]
+    if isinstance(m, str):
+        m = {"name": m}
+    _table(ctx, "mechanism", m)
+    if "name" not in m:
+        raise ctx.error("mechanism.name", "missing: name the mechanism, one of "
+                        f"{', '.join(catalogue.available())}")
+    name = _str(ctx, "mechanism.name", m["name"])
+    ref = catalogue.is_reference(name)
+    key = name if ref else name.replace("-", "_")
+    avail = catalogue.available()
+    if not ref and key not in avail:
+        raise ctx.error("mechanism.name", f"unknown mechanism {name!r}{_suggest(key, avail)}; "
+                        f"available: {', '.join(avail)}, or 'package.module:function' for a builder of your own")
+    try:
+        module = catalogue.get(key)
+    except KedError as e:
+        raise ctx.error("mechanism.name", str(e)) from None
+    defaults = mechanism_parameters(module)
+    params = {}
+    for k, v in m.items():
+        if k == "name":
+            continue
+        pk = f"mechanism.{k}"
+        if k == "speed":
+            raise ctx.error(pk, "set the speed with the top-level key speed_rpm [rev/min], not in [mechanism]")
+        if k not in defaults:
+            known = [d for d in defaults if d != "speed"]
+            raise ctx.error(pk, f"unknown parameter of {key}{_suggest(k, known)}; known: {', '.join(known)}")
+        params[k] = _mech_value(ctx, pk, k, v, defaults[k])
+    try:
+        mech = module.build(**params)
+    except KedError as e:
+        # point at the parameter the builder names ("coupler must be a length > 0 m"), else the table
+        msg = str(e)
+        named = [k for k in params if re.search(rf"\b{re.escape(k)}\b must", msg)]
+        raise ctx.error(f"mechanism.{named[0]}" if named else "mechanism", msg) from None
+    except Exception as e:  # noqa: BLE001 - a builder's own failure on user values is a scene error
+        log.debug("mechanism %s rejected %r", key, params, exc_info=True)
+        raise ctx.error("mechanism", f"{key} cannot be built with these parameters "
+                        f"({type(e).__name__}: {e})") from None
+    return key, params, mech
+
+
+def _mech_value(ctx, key, name, v, default):
+    signed = name in SIGNED_PARAMETERS
+    if isinstance(default, bool):
+        return _bool(ctx, key, v)
+    if isinstance(default, int):
+        if name == "elements" or name.endswith("_elements"):
+            return _int(ctx, key, v, 1, MAX_ELEMENTS, " (kedfem.io.scenefile.MAX_ELEMENTS)")
+        return _int(ctx, key, v, -10**6 if signed else 0, 10**6)
+    if isinstance(default, float):
+        return _float(ctx, key, v, lo=None if signed else 0.0)
+    if isinstance(default, str):
+        return _str(ctx, key, v)
+    if isinstance(default, (tuple, list)):
+        if not isinstance(v, list) or len(v) != len(default):
+            raise ctx.error(key, f"must be an array of {len(default)} numbers, got {_typename(v)} {v!r}")
+        return tuple(_float(ctx, key, x, lo=None if signed else 0.0) for x in v)
+    if default is None:
+        if isinstance(v, bool) or not isinstance(v, (int, float, str)):
+            raise ctx.error(key, f"must be a number or a string, got {_typename(v)} {v!r}")
+        return _float(ctx, key, v) if isinstance(v, (int, float)) else v
+    raise ctx.error(key, f"cannot be set from a scene file (default {default!r})")
+
+
+def _effects(ctx, v):
+    if v == "all":
+        return tuple(EFFECTS)
+    if isinstance(v, str):
+        v = [v]
+    if not isinstance(v, list):
+        raise ctx.error("effects", f"must be an array of effect names or \"all\", got {_typename(v)} {v!r}")
+    out = []
+    for e in v:
+        if not isinstance(e, str):
+            raise ctx.error("effects", f"must contain effect names (strings), got {_typename(e)} {e!r}")
+        if e not in EFFECTS:
+            raise ctx.error("effects", f"unknown effect {e!r}{_suggest(e, EFFECTS)}; known: {', '.join(EFFECTS)}")
+        out.append(e)
+    return tuple(out)
+
+
+def _damping(ctx, v, default):
+    if v is None:
+        return default
+    if isinstance(v, str):
+        v = {"model": v}
+    _table(ctx, "damping", v)
+    _unknown(ctx, v, _DAMPING_KEYS, "damping.")
+    if "model" in v:
+        model = _str(ctx, "damping.model", v["model"], ("rayleigh", "modal", "none"))
+    elif "zeta" in v:
+        model = "modal"
+    elif "alpha" in v or "beta" in v:
+        model = "rayleigh"
+    else:
+        raise ctx.error("damping.model", "missing: give model = \"rayleigh\" (alpha, beta), \"modal\" (zeta) "
+                        "or \"none\"")
+    allowed = {"rayleigh": ("alpha", "beta"), "modal": ("zeta",), "none": ()}[model]
+    for k in v:
+        if k != "model" and k not in allowed:
+            raise ctx.error(f"damping.{k}", f"does not apply to damping model {model!r} "
+                            f"(it takes {', '.join(allowed) or 'no parameters'})")
+    if model == "none":
+        return None
+    if model == "modal":
+        if "zeta" not in v:
+            raise ctx.error("damping.zeta", "missing: modal damping needs zeta (ratio, 0 <= zeta < 1)")
+        return ModalDamping(_float(ctx, "damping.zeta", v["zeta"], lo=0.0, hi=1.0, hi_open=True))
+    alpha = _float(ctx, "damping.alpha", v.get("alpha", 0.0), lo=0.0, unit=" [1/s]")
+    beta = _float(ctx, "damping.beta", v.get("beta", 0.0), lo=0.0, unit=" [s]")
+    return Rayleigh(alpha, beta)
+
+
+def _solver(ctx, v):
+    v = _table(ctx, "solver", v if v is not None else {})
+    _unknown(ctx, v, _SOLVER_KEYS, "solver.")
+    out = {}
+    if "eps" in v:
+        out["eps"] = _float(ctx, "solver.eps", v["eps"], lo=0.0, hi=1.0, lo_open=True, hi_open=True)
+    if "max_iter" in v:
+        out["max_iter"] = _int(ctx, "solver.max_iter", v["max_iter"], 1, MAX_ITER,
+                               " (each iteration is a full periodic solve)")
+    if "nonlinear_method" in v:
+        out["nonlinear_method"] = _str(ctx, "solver.nonlinear_method", v["nonlinear_method"], NONLINEAR_METHODS)
+    if "delta" in v:
+        out["delta"] = _float(ctx, "solver.delta", v["delta"], lo=0.0, hi=1.0, lo_open=True, hi_open=True)
+    return out
+
+
+def _outputs(ctx, v) -> Outputs:
+    v = _table(ctx, "output", v if v is not None else {})
+    _unknown(ctx, v, _OUTPUT_KEYS, "output.")
+    kw = {}
+    if "dir" in v:
+        d = _str(ctx, "output.dir", v["dir"])
+        if not d.strip() or "\0" in d:
+            raise ctx.error("output.dir", f"must be a folder name, got {d!r}")
+        kw["dir"] = Path(d)
+    for k in ("plots", "csv", "npz", "vtk", "render"):
+        if k in v:
+            kw[k] = _bool(ctx, f"output.{k}", v[k])
+    if "modes" in v:
+        kw["modes"] = _int(ctx, "output.modes", v["modes"], 0, MAX_MODES)
+    if "scale" in v:
+        s = v["scale"]
+        if s == "auto":
+            kw["scale"] = None
+        else:
+            if isinstance(s, str):
+                raise ctx.error("output.scale", f"must be \"auto\" or a number > 0, got {s!r}")
+            kw["scale"] = _float(ctx, "output.scale", s, lo=0.0, lo_open=True, hi=1e12)
+    if "every" in v:
+        kw["every"] = _int(ctx, "output.every", v["every"], 1, MAX_STEPS)
+    if "dofs" in v:
+        d = v["dofs"]
+        if not isinstance(d, list) or not all(isinstance(x, str) for x in d):
+            raise ctx.error("output.dofs", f"must be an array of DOF labels (strings), got {d!r}")
+        kw["dofs"] = tuple(d)
+    return Outputs(**kw)
+
+
+_SWEEPABLE_TOP = ("accuracy", "steps", "speed_rpm", "hold", "effects", "name")
+
+
+def _flatten(d: Mapping, prefix=""):
+    for k, v in d.items():
+        if isinstance(v, dict):
+            yield from _flatten(v, f"{prefix}{k}.")
+        else:
+            yield f"{prefix}{k}", v
+
+
+def _sweep(ctx, v, mech_key: str) -> dict[str, tuple]:
+    if v is None:
+        return {}
+    _table(ctx, "sweep", v)
+    from .. import catalogue
+    params = mechanism_parameters(catalogue.get(mech_key))
+    axes = {}
+    n = 1
+    for path, values in _flatten(v):
+        key = f"sweep.{path}"
+        head, _, rest = path.partition(".")
+        ok = ((not rest and head in _SWEEPABLE_TOP)
+              or (head == "mechanism" and rest in params and rest != "speed")
+              or (head == "damping" and rest in _DAMPING_KEYS)
+              or (head == "solver" and rest in _SOLVER_KEYS))
+        if not ok:
+            choices = list(_SWEEPABLE_TOP) + [f"mechanism.{p}" for p in params if p != "speed"] + \
+                [f"damping.{k}" for k in _DAMPING_KEYS] + [f"solver.{k}" for k in _SOLVER_KEYS]
+            hint = " (the speed is swept as speed_rpm)" if path == "mechanism.speed" else _suggest(path, choices)
+            raise ctx.error(key, f"cannot sweep {path!r}{hint}; sweepable: steps, speed_rpm, hold, effects, "
+                            "mechanism.<parameter>, damping.<key>, solver.<key>")
+        if not isinstance(values, list) or not values:
+            raise ctx.error(key, f"must be a non-empty array of values, got {_typename(values)} {values!r}")
+        n *= len(values)
+        if n > MAX_SWEEP_POINTS:
+            raise ctx.error(key, f"the grid has more than {MAX_SWEEP_POINTS} points (MAX_SWEEP_POINTS)")
+        axes[path] = tuple(values)
+    return axes
+
+
+def _default_name(key: str, params: Mapping, mech) -> str:
+    if key == "mould_oscillator":
+        return f"mould oscillator, group {params.get('group', 1)}"
+    return mech.name
+
+
+def parse_scene(data: Mapping, *, source: str | None = None, text: str | None = None,
+                overridden=()) -> SceneSpec:
+    """Validate a scene dictionary (a parsed scene file) and build its scene.
+
+    Parameters
+    ----------
+    data : mapping
+        Parsed TOML (see the module docstring for the layout).
+    source : str, optional
+        File name used in error messages.
+    text : str, optional
+        The file's text, to find the line of an offending key.
+    overridden : iterable of str
+        Dotted keys whose values came from the command line (named so in errors).
+
+    Returns
+    -------
+    SceneSpec
+
+    Raises
+    ------
+    SceneFileError
+        Any bad, missing or unknown key; a mechanism that cannot be built.
+    """
+    ctx = _Ctx(source, text, overridden)
+    if not isinstance(data, Mapping):
+        raise ctx.error(None, f"a scene must be a table, got {_typename(data)}")
+    _unknown(ctx, data, _TOP_KEYS, "")
+    key, params, mech = _mechanism(ctx, data)
+    pre = preset(key)
+    kw: dict[str, Any] = {}
+    # an accuracy preset replaces the mechanism's tolerance and solver knobs
+    # (keys given in the file still win)
+    accuracy = _str(ctx, "accuracy", data["accuracy"], tuple(ACCURACY_PRESETS)) if "accuracy" in data else None
+    if accuracy is not None:
+        kw["accuracy"] = accuracy
+    if "rtol" in data:
+        kw["rtol"] = _float(ctx, "rtol", data["rtol"], lo=0.0, hi=1.0, lo_open=True, hi_open=True)
+    if "method" in data:
+        from ..solvers.schemes import names as scheme_names
+        kw["method"] = _str(ctx, "method", data["method"], scheme_names())
+    kw["steps"] = _int(ctx, "steps", data["steps"], 3, MAX_STEPS,
+                       " (the cost grows linearly with it; rtol picks the number of elements a "
+                       "result needs; see kedfem.analysis.scene.MAX_STEPS)") if "steps" in data else (
+                           None if accuracy else pre.steps)
+    if "speed_rpm" in data:
+        kw["speed"] = _float(ctx, "speed_rpm", data["speed_rpm"], nonzero=True, unit=" [rev/min]") * RPM
+    # a method given on the command line replaces the file's hold
+    hold_dropped = "method" in ctx.overridden and "hold" not in ctx.overridden
+    kw["hold"] = _str(ctx, "hold", data["hold"], HOLDS) if ("hold" in data and not hold_dropped) else (
+        None if (accuracy or "method" in data) else pre.hold)
+    kw["effects"] = _effects(ctx, data["effects"]) if "effects" in data else pre.effects
+    kw["damping"] = _damping(ctx, data.get("damping"), pre.damping)
+    kw.update({k: v for k, v in pre.solver if not (accuracy and k in ("eps", "delta"))})
+    kw.update(_solver(ctx, data.get("solver")))
+    kw["name"] = _str(ctx, "name", data["name"]) if "name" in data else _default_name(key, params, mech)
+    outputs = _outputs(ctx, data.get("output"))
+    sweep = _sweep(ctx, data.get("sweep"), key)
+    try:
+        scene = Scene(mech, **kw)
+    except KedError as e:
+        # name the key the Scene's check is about (the cycle: the speed; else the mechanism)
+        msg = str(e)
+        key = "speed_rpm" if ("speed_rpm" in data and ("cycle" in msg or "speed" in msg)) else "mechanism"
+        raise ctx.error(key, msg) from None
+    clean = {k: copy.deepcopy(v) for k, v in data.items() if k not in ("output", "sweep")}
+    return SceneSpec(scene, outputs, sweep, clean)
+
+
+def scene_from_dict(data: Mapping, *, source: str | None = None) -> Scene:
+    """The :class:`~kedfem.analysis.scene.Scene` of a scene dictionary (see :func:`parse_scene`)."""
+    return parse_scene(data, source=source).scene
+
+
+def read_scene_file(path) -> tuple[dict, str]:
+    """Read and parse a TOML scene file.
+
+    Returns
+    -------
+    data : dict
+        The parsed TOML (not yet validated).
+    text : str
+        The file's text.
+
+    Raises
+    ------
+    SceneFileError
+        Unreadable file, not UTF-8, too large, or invalid TOML (with its line).
+    """
+    p = Path(path)
+    src = str(path)
+    try:
+        size = p.stat().st_size
+        if size > MAX_FILE_BYTES:
+            raise SceneFileError(f"file is {size} bytes; scene files are limited to {MAX_FILE_BYTES}", path=src)
+        text = p.read_bytes().decode("utf-8")
+    except SceneFileError:
+        raise
+    except UnicodeDecodeError as e:
+        raise SceneFileError(f"not UTF-8 text ({e.reason} at byte {e.start})", path=src) from None
+    except OSError as e:
+        raise SceneFileError(f"cannot read the scene file ({e.strerror or e})", path=src) from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        m = re.search(r"at line (\d+)", str(e))
+        raise SceneFileError(f"invalid TOML: {e}", path=src, line=int(m.group(1)) if m else None) from None
+    return data, text
+
+
+def load_scene(path, overrides: Mapping[str, Any] | None = None) -> tuple[Scene, Outputs]:
+    """Load a TOML scene file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.toml`` file.
+    overrides : mapping, optional
+        Dotted keys set before validation (``{"steps": 60}``), e.g. from the
+        command line; errors name them as such.
+
+    Returns
+    -------
+    scene : Scene
+    outputs : Outputs
+
+    Raises
+    ------
+    SceneFileError
+    """
+    spec = load_spec(path, overrides)
+    return spec.scene, spec.outputs
+
+
+def load_spec(path, overrides: Mapping[str, Any] | None = None) -> SceneSpec:
+    """Like :func:`load_scene`, returning the whole :class:`SceneSpec` (with the sweep axes)."""
+    data, text = read_scene_file(path)
+    overrides = dict(overrides or {})
+    if overrides:
+        data = with_overrides(data, overrides)
+    return parse_scene(data, source=str(path), text=text, overridden=overrides)
+
+
+def load_sweep(path) -> tuple[dict, dict[str, tuple]]:
+    """Base scene dictionary and sweep axes of a scene file with a ``[sweep]`` table."""
+    spec = load_spec(path)
+    return spec.data, spec.sweep
+
+
+def with_overrides(data: Mapping, overrides: Mapping[str, Any]) -> dict:
+    """A deep copy of ``data`` with dotted keys set (``"mechanism.elements": 4``).
+
+    A string value for ``mechanism`` is expanded to ``{"name": ...}`` first.
+    """
+    out = copy.deepcopy(dict(data))
+    if isinstance(out.get("mechanism"), str):
+        out["mechanism"] = {"name": out["mechanism"]}
+    for path, value in overrides.items():
+        parts = str(path).split(".")
+        d = out
+        for p in parts[:-1]:
+            nxt = d.get(p)
+            if not isinstance(nxt, dict):
+                nxt = {}
+                d[p] = nxt
+            d = nxt
+        d[parts[-1]] = copy.deepcopy(value)
+    return out
+
+
+def grid_size(axes: Mapping[str, tuple]) -> int:
+    """Number of points of a sweep grid."""
+    return math.prod(len(v) for v in axes.values()) if axes else 0
+
+
+def grid_points(axes: Mapping[str, tuple]):
+    """Cartesian product of the axes, as dicts dotted key -> value (first axis slowest)."""
+    keys = list(axes)
+    for combo in itertools.product(*(axes[k] for k in keys)):
+        yield dict(zip(keys, combo))
+
+
+def describe_damping(d) -> str:
+    """One-line description of a damping model."""
+    if d is None:
+        return "none (undamped)"
+    if isinstance(d, ModalDamping):
+        return f"modal, zeta = {d.zeta:g}"
+    if isinstance(d, Rayleigh):
+        return f"Rayleigh, alpha = {d.alpha:g} 1/s, beta = {d.beta:g} s"
+    return repr(d)
+
+
+def scene_summary(scene: Scene) -> dict[str, str]:
+    """Human-readable fields of a scene (for reports)."""
+    sp = scene.mech.drives[0].speed
+    return {
+        "mechanism": scene.mech.name,
+        "speed": f"{sp / RPM:.6g} rpm ({sp:.6g} rad/s), period {scene.period:.6g} s",
+        "steps": "tolerance-driven" if scene.steps is None else str(scene.steps),
+        "method": scene.scheme,
+        "rtol": f"{scene.rtol:g}",
+        "effects": ", ".join(scene.effects),
+        "damping": describe_damping(scene.damping),
+    }
+

@@ -1,0 +1,122 @@
+"""Materials and cross-sections of flexible links."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from ..errors import InputError
+
+__all__ = ["Material", "Section"]
+
+
+def real(owner: str, name: str, value, *, positive: bool = False, nonneg: bool = False) -> float:
+    """``value`` as a finite float, or an :class:`InputError` naming ``owner`` and ``name``."""
+    if isinstance(value, bool):
+        raise InputError(f"{owner}: {name} must be a number, got {value!r}")
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{owner}: {name} must be a number, got {value!r}") from None
+    if not math.isfinite(v):
+        raise InputError(f"{owner}: {name} must be finite, got {value!r}")
+    if positive and v <= 0.0:
+        raise InputError(f"{owner}: {name} must be > 0, got {value!r}")
+    if nonneg and v < 0.0:
+        raise InputError(f"{owner}: {name} must be >= 0, got {value!r}")
+    return v
+
+
+def _positive(owner: str, name: str, value) -> float:
+    return real(owner, name, value, positive=True)
+
+
+@dataclass(frozen=True)
+class Material:
+    """Linear elastic isotropic material.
+
+    Parameters
+    ----------
+    E : float
+        Young's modulus [Pa].
+    rho : float
+        Density [kg/m^3].
+    nu : float, optional
+        Poisson's ratio (only used by the Timoshenko shear modulus), default 0.3.
+    """
+
+    E: float
+    rho: float
+    nu: float = 0.3
+
+    def __post_init__(self):
+        object.__setattr__(self, "E", _positive("Material", "E", self.E))
+        object.__setattr__(self, "rho", _positive("Material", "rho", self.rho))
+        if isinstance(self.nu, bool):
+            raise InputError(f"Material: nu must be a number, got {self.nu!r}")
+        try:
+            nu = float(self.nu)
+        except (TypeError, ValueError):
+            raise InputError(f"Material: nu must be a number, got {self.nu!r}") from None
+        if not (-1.0 < nu < 0.5):
+            raise InputError(f"Material: nu must lie in (-1, 0.5), got {self.nu!r}")
+        object.__setattr__(self, "nu", nu)
+
+    @property
+    def G(self) -> float:
+        """Shear modulus ``E / (2 (1 + nu))`` [Pa]."""
+        return self.E / (2.0 * (1.0 + self.nu))
+
+
+@dataclass(frozen=True)
+class Section:
+    """Cross-section of a planar beam (bending in the mechanism's plane).
+
+    Parameters
+    ----------
+    A : float
+        Area [m^2].
+    I : float
+        Second moment of area about the out-of-plane axis [m^4].
+    c : float, optional
+        Distance from the neutral axis to the extreme fibre [m], used for the
+        bending stress ``M c / I``. ``None`` if unknown (stress then needs it).
+    kappa : float, optional
+        Shear correction factor (Timoshenko), default 5/6.
+    """
+
+    A: float
+    I: float  # noqa: E741 - engineering notation
+    c: float | None = None
+    kappa: float = 5.0 / 6.0
+
+    def __post_init__(self):
+        object.__setattr__(self, "A", _positive("Section", "A", self.A))
+        object.__setattr__(self, "I", _positive("Section", "I", self.I))
+        if self.c is not None:
+            object.__setattr__(self, "c", _positive("Section", "c", self.c))
+        object.__setattr__(self, "kappa", _positive("Section", "kappa", self.kappa))
+
+    @classmethod
+    def rectangle(cls, b: float, h: float) -> "Section":
+        """Solid rectangle: width ``b`` out of plane, height ``h`` in plane [m]."""
+        b = _positive("Section.rectangle", "b", b)
+        h = _positive("Section.rectangle", "h", h)
+        return cls(A=b * h, I=b * h**3 / 12.0, c=h / 2.0, kappa=5.0 / 6.0)
+
+    @classmethod
+    def circle(cls, d: float) -> "Section":
+        """Solid circle of diameter ``d`` [m]."""
+        d = _positive("Section.circle", "d", d)
+        return cls(A=math.pi * d**2 / 4.0, I=math.pi * d**4 / 64.0, c=d / 2.0, kappa=0.9)
+
+    @classmethod
+    def tube(cls, d: float, t: float) -> "Section":
+        """Circular tube of outer diameter ``d`` and wall thickness ``t`` [m]."""
+        d = _positive("Section.tube", "d", d)
+        t = _positive("Section.tube", "t", t)
+        if 2 * t >= d:
+            raise InputError(f"Section.tube: wall thickness t={t} must be < d/2={d / 2}")
+        di = d - 2 * t
+        return cls(A=math.pi * (d**2 - di**2) / 4.0, I=math.pi * (d**4 - di**4) / 64.0,
+                   c=d / 2.0, kappa=0.5)

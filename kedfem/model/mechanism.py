@@ -1,0 +1,710 @@
+"""Mechanism builder: joints (graph nodes) joined by links, bodies and springs (edges).
+
+A :class:`Mechanism` is a description, not a solver: it records the
+reference configuration (every ``at=`` position), the components and the
+drives, checks each call's input at once, and keeps a
+:class:`networkx.MultiGraph` whose nodes are joints and whose edges are the
+links, rigid bodies (a star of edges from their first attachment) and
+springs. Kinematics, assembly and the solvers read it.
+
+Conventions: SI units throughout; angles in radians, positive
+counter-clockwise; a link's angle is the angle of its ``a -> b`` line.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import networkx as nx
+import numpy as np
+
+from ..errors import InputError
+from .materials import Material, Section, real
+
+__all__ = [
+    "Mechanism",
+    "Joint",
+    "Link",
+    "Body",
+    "PointMass",
+    "Spring",
+    "TorsionalSpring",
+    "Drive",
+    "Load",
+    "Friction",
+]
+
+GROUND = "ground"
+
+
+def _vec2(owner: str, name: str, value) -> tuple[float, float]:
+    try:
+        arr = np.asarray(value, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise InputError(f"{owner}: {name} must be a pair of numbers, got {value!r}") from None
+    if arr.shape != (2,) or not np.all(np.isfinite(arr)):
+        raise InputError(f"{owner}: {name} must be two finite numbers (x, y) [m], got {value!r}")
+    return (float(arr[0]), float(arr[1]))
+
+
+_number = real  # the finite-number check of materials.py
+
+
+@dataclass(frozen=True)
+class Joint:
+    """A joint of the mechanism (a node of the graph).
+
+    ``kind`` is ``"revolute"`` (pin between members), ``"ground"`` (pin to
+    the frame) or ``"slider"`` (pin on a slider moving along a fixed line).
+    ``welded`` joints (and clamped ground joints) connect their members
+    rigidly, kinematically and elastically.
+    """
+
+    name: str
+    at: tuple[float, float]
+    kind: str = "revolute"
+    welded: bool = False
+    axis: tuple[float, float] | None = None
+
+    @property
+    def grounded(self) -> bool:
+        """True for joints whose translation is fixed to the frame."""
+        return self.kind == "ground"
+
+
+@dataclass(frozen=True)
+class Link:
+    """A straight link from joint ``a`` to joint ``b``.
+
+    Flexible links are meshed into ``elements`` planar frame elements of
+    ``material`` and ``section``. Rigid links add no elastic DOFs of their
+    own; their mass is ``mass`` (or ``rho A L`` when a material and section
+    are given) with rotary inertia ``J`` about the centre (default
+    ``m L^2 / 12``).
+    """
+
+    name: str
+    a: str
+    b: str
+    rigid: bool
+    material: Material | None
+    section: Section | None
+    elements: int
+    ends: tuple[str, str]
+    mass: float
+    J: float
+    mass_matrix: str
+    timoshenko: bool
+    length: float
+    kinematic: bool = True
+
+    @property
+    def joints(self) -> tuple[str, str]:
+        return (self.a, self.b)
+
+
+@dataclass(frozen=True)
+class Body:
+    """A rigid body attached at several joints (e.g. an oscillation table).
+
+    Its rotation is measured from the reference configuration; ``cm`` is
+    the centre of mass there, ``J`` the rotary inertia about it [kg m^2].
+    """
+
+    name: str
+    joints: tuple[str, ...]
+    mass: float
+    J: float
+    cm: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class PointMass:
+    """A lumped mass [kg] (and rotary inertia J [kg m^2]) at a joint."""
+
+    joint: str
+    mass: float
+    J: float = 0.0
+
+
+@dataclass(frozen=True)
+class Spring:
+    """Translational spring acting along a fixed global ``axis``.
+
+    Between joint ``a`` and joint ``b`` (or the frame when ``b`` is None).
+    Its extension is ``delta = (x_a - x_b) . axis`` measured from the
+    reference configuration, and the force it exerts on ``a`` is
+    ``-(preload + k delta + k3 delta^3) axis`` (``+`` that on ``b``).
+    """
+
+    name: str
+    a: str
+    b: str | None
+    k: float
+    axis: tuple[float, float]
+    k3: float = 0.0
+    preload: float = 0.0
+
+    @property
+    def nonlinear(self) -> bool:
+        return self.k3 != 0.0
+
+
+@dataclass(frozen=True)
+class TorsionalSpring:
+    """Torsional spring between two members at a joint (or a member and the frame).
+
+    Relative rotation ``delta = phi_1 - phi_2`` from the reference
+    configuration; moment on member 1 ``-(preload + k delta)``.
+    """
+
+    name: str
+    joint: str
+    member: str
+    other: str | None
+    k: float
+    preload: float = 0.0
+
+
+@dataclass(frozen=True)
+class Drive:
+    """Constant-speed input on a member pivoting at a ground joint.
+
+    ``speed`` [rad/s] (+ counter-clockwise). Without ``torsional_stiffness``
+    the member's elastic rotation at the ground joint is fixed; with it the
+    member is tied to the motor through a torsional spring [N m/rad].
+    """
+
+    member: str
+    speed: float
+    ground_joint: str
+    torsional_stiffness: float | None = None
+
+
+@dataclass(frozen=True)
+class Load:
+    """Constant external force [N] at a joint, in global components."""
+
+    name: str
+    joint: str
+    force: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class Friction:
+    """Friction force of magnitude ``force`` [N] at a joint along ``axis``.
+
+    The force opposes the joint's velocity component along ``axis`` relative
+    to ``reference_speed`` [m/s] (e.g. the casting speed of a strand):
+    ``F = -force * tanh((v . axis - reference_speed) / smoothing) * axis``.
+    ``follows="rigid"`` uses the rigid-body velocity (state independent);
+    ``"total"`` adds the elastic velocity (state dependent: iterated).
+    """
+
+    name: str
+    joint: str
+    force: float
+    axis: tuple[float, float]
+    reference_speed: float = 0.0
+    smoothing: float = 1e-3
+    follows: str = "rigid"
+
+
+@dataclass
+class Mechanism:
+    """A planar linkage: joints joined by links, rigid bodies and springs.
+
+    Examples
+    --------
+    >>> import kedfem as kf
+    >>> m = kf.Mechanism("slider-crank")
+    >>> m.ground("O", at=(0.0, 0.0))
+    >>> m.joint("A", at=(0.15, 0.0))
+    >>> m.slider("B", at=(0.45, 0.0), axis=(1.0, 0.0))
+    >>> m.link("crank", "O", "A", rigid=True)
+    >>> m.link("rod", "A", "B", material=kf.Material(E=2e11, rho=7870),
+    ...        section=kf.Section.rectangle(0.008, 0.008), elements=8)
+    >>> m.point_mass("B", 0.075552)
+    >>> m.drive("crank", speed=150.0)
+    """
+
+    name: str = "mechanism"
+    joints: dict[str, Joint] = field(default_factory=dict)
+    links: dict[str, Link] = field(default_factory=dict)
+    bodies: dict[str, Body] = field(default_factory=dict)
+    point_masses: list[PointMass] = field(default_factory=list)
+    springs: dict[str, Spring] = field(default_factory=dict)
+    torsional_springs: dict[str, TorsionalSpring] = field(default_factory=dict)
+    drives: list[Drive] = field(default_factory=list)
+    loads: dict[str, Load] = field(default_factory=dict)
+    frictions: dict[str, Friction] = field(default_factory=dict)
+    gravity: tuple[float, float] = (0.0, -9.80665)
+    graph: nx.MultiGraph = field(default_factory=nx.MultiGraph, repr=False)
+
+    # ------------------------------------------------------------------ joints
+    def _new_joint(self, joint: Joint) -> Joint:
+        if not isinstance(joint.name, str) or not joint.name:
+            raise InputError(f"{self.name}: joint name must be a non-empty string, got {joint.name!r}")
+        if joint.name == GROUND:
+            raise InputError(f"{self.name}: '{GROUND}' is reserved for the frame; choose another joint name")
+        if joint.name in self.joints:
+            raise InputError(f"{self.name}: joint '{joint.name}' is defined twice")
+        self.joints[joint.name] = joint
+        self.graph.add_node(joint.name, joint=joint)
+        return joint
+
+    def ground(self, name: str, at, clamped: bool = False) -> Joint:
+        """Add a revolute joint to the frame (``clamped=True`` welds it).
+
+        Parameters
+        ----------
+        name : str
+            Joint name.
+        at : (float, float)
+            Position in the reference configuration [m].
+        clamped : bool
+            Weld the members meeting here to the frame (a cantilever root).
+        """
+        return self._new_joint(Joint(name, _vec2(f"ground '{name}'", "at", at), "ground",
+                                     welded=bool(clamped)))
+
+    def joint(self, name: str, at, welded: bool = False) -> Joint:
+        """Add a joint between members: revolute, or rigid when ``welded=True``.
+
+        Parameters
+        ----------
+        name : str
+            Joint name.
+        at : (float, float)
+            Position in the reference configuration [m]; it chooses the
+            assembly branch of the linkage.
+        welded : bool
+            Connect the members meeting here rigidly (kinematics and elasticity).
+        """
+        return self._new_joint(Joint(name, _vec2(f"joint '{name}'", "at", at), "revolute",
+                                     welded=bool(welded)))
+
+    def slider(self, name: str, at, axis=(1.0, 0.0)) -> Joint:
+        """Add a pin on a slider that moves along a fixed line through ``at``.
+
+        Parameters
+        ----------
+        name : str
+            Joint name.
+        at : (float, float)
+            Position in the reference configuration [m].
+        axis : (float, float)
+            Direction of the slider's line (normalised here).
+        """
+        ax = np.asarray(_vec2(f"slider '{name}'", "axis", axis))
+        big = float(np.max(np.abs(ax)))
+        if big == 0.0:
+            raise InputError(f"slider '{name}': axis must be a non-zero vector")
+        ax = ax / big                      # scaled first: a subnormal axis normalises exactly
+        ax = tuple(float(v) for v in ax / float(np.hypot(*ax)))
+        return self._new_joint(Joint(name, _vec2(f"slider '{name}'", "at", at), "slider", axis=ax))
+
+    # -------------------------------------------------------------- components
+    def _check_component_name(self, kind: str, name: str):
+        if not isinstance(name, str) or not name:
+            raise InputError(f"{self.name}: {kind} name must be a non-empty string, got {name!r}")
+        taken = set(self.links) | set(self.bodies) | set(self.springs) | set(self.torsional_springs)
+        if name in taken:
+            raise InputError(f"{self.name}: component name '{name}' is used twice")
+
+    def _check_joint(self, owner: str, jname: str) -> Joint:
+        if jname not in self.joints:
+            known = ", ".join(sorted(self.joints)) or "none yet"
+            raise InputError(f"{owner} names unknown joint '{jname}' (defined joints: {known})")
+        return self.joints[jname]
+
+    def link(self, name: str, a: str, b: str, *, material: Material | None = None,
+             section: Section | None = None, elements: int = 1, rigid: bool = False,
+             ends=("pin", "pin"), mass: float | None = None, J: float | None = None,
+             mass_matrix: str = "consistent", timoshenko: bool = False,
+             kinematic: bool = True) -> Link:
+        """Add a straight link from joint ``a`` to joint ``b``.
+
+        Parameters
+        ----------
+        name : str
+            Link name (unique among components).
+        a, b : str
+            Joints at the link's ends; the link's angle is that of the ``a -> b`` line.
+        material : Material, optional
+            Required for flexible links; for rigid links it gives the mass.
+        section : Section, optional
+            Required for flexible links; for rigid links it gives the mass.
+        elements : int
+            Number of frame elements of a flexible link.
+        rigid : bool
+            Rigid link: no elastic DOFs of its own.
+        ends : (str, str)
+            Elastic end conditions at ``a`` and ``b``: ``"pin"`` (own elastic
+            rotation) or ``"clamp"`` (elastic rotation tied to what the joint
+            connects to: the frame, a rigid body or the other clamped ends).
+            At a revolute joint the kinematics still treat the end as a pin;
+            the change of relative rigid-body angle then becomes a prescribed
+            elastic rotation (a guiding leaf spring bending in an S).
+        mass, J : float, optional
+            Rigid links only: mass [kg] and rotary inertia about the centre [kg m^2].
+        mass_matrix : {"consistent", "lumped"}
+            Element mass matrix of a flexible link.
+        timoshenko : bool
+            Shear-flexible (Timoshenko) stiffness for a flexible link.
+        kinematic : bool
+            ``False`` for a redundant flexible member (e.g. a second guiding
+            leaf-spring pack): it takes no part in the rigid-body kinematics;
+            its frame follows the chord between its end joints, and the change
+            of chord length is a prescribed elastic elongation. It carries no
+            kinetostatic force; its axial force comes from the elastic solution.
+        """
+        self._check_component_name("link", name)
+        owner = f"link '{name}'"
+        ja = self._check_joint(owner, a)
+        jb = self._check_joint(owner, b)
+        if a == b:
+            raise InputError(f"{owner}: both ends at joint '{a}'")
+        length = float(np.hypot(jb.at[0] - ja.at[0], jb.at[1] - ja.at[1]))
+        if length <= 1e-12:
+            raise InputError(f"{owner}: zero length (joints '{a}' and '{b}' coincide at {ja.at})")
+        if isinstance(ends, str):
+            ends = (ends, ends)
+        ends = tuple(ends)
+        if len(ends) != 2 or any(e not in ("pin", "clamp") for e in ends):
+            raise InputError(f"{owner}: ends must be two of 'pin'/'clamp', got {ends!r}")
+        if mass_matrix not in ("consistent", "lumped"):
+            raise InputError(f"{owner}: mass_matrix must be 'consistent' or 'lumped', got {mass_matrix!r}")
+        if material is not None and not isinstance(material, Material):
+            raise InputError(f"{owner}: material must be a kedfem.Material, got {material!r}")
+        if section is not None and not isinstance(section, Section):
+            raise InputError(f"{owner}: section must be a kedfem.Section, got {section!r}")
+        if not kinematic and rigid:
+            raise InputError(f"{owner}: a rigid link must take part in the kinematics (kinematic=False "
+                             "is for redundant flexible members)")
+        if rigid:
+            if mass is not None:
+                m = _number(owner, "mass", mass, nonneg=True)
+            elif material is not None and section is not None:
+                m = material.rho * section.A * length
+            else:
+                m = 0.0
+            j = _number(owner, "J", J, nonneg=True) if J is not None else m * length**2 / 12.0
+            n_el = 0
+        else:
+            if material is None or section is None:
+                raise InputError(f"{owner}: a flexible link needs material= and section= (or rigid=True)")
+            if mass is not None or J is not None:
+                raise InputError(f"{owner}: mass=/J= apply to rigid links only")
+            if isinstance(elements, bool) or not isinstance(elements, (int, np.integer)) or elements < 1:
+                raise InputError(f"{owner}: elements must be an integer >= 1, got {elements!r}")
+            n_el = int(elements)
+            m = material.rho * section.A * length
+            j = m * length**2 / 12.0
+        lk = Link(name, a, b, bool(rigid), material, section, n_el, ends, float(m), float(j),
+                  mass_matrix, bool(timoshenko), length, bool(kinematic))
+        self.links[name] = lk
+        self.graph.add_edge(a, b, key=name, kind="link", component=lk)
+        return lk
+
+    def body(self, name: str, joints, *, mass: float, J: float, cm=None) -> Body:
+        """Add a rigid body attached at several joints.
+
+        Parameters
+        ----------
+        name : str
+            Body name.
+        joints : sequence of str
+            Attachment joints (at least one); each is a revolute connection
+            unless the joint is welded or a link end is clamped there.
+        mass : float
+            Mass [kg].
+        J : float
+            Rotary inertia about the centre of mass [kg m^2].
+        cm : (float, float), optional
+            Centre of mass in the reference configuration [m]; default the
+            centroid of the attachment joints.
+        """
+        self._check_component_name("body", name)
+        owner = f"body '{name}'"
+        if isinstance(joints, str):
+            joints = (joints,)
+        joints = tuple(joints)
+        if not joints:
+            raise InputError(f"{owner}: needs at least one attachment joint")
+        if len(set(joints)) != len(joints):
+            raise InputError(f"{owner}: attachment joints repeat: {joints}")
+        pts = [self._check_joint(owner, j).at for j in joints]
+        mass = _number(owner, "mass", mass, nonneg=True)
+        J = _number(owner, "J", J, nonneg=True)
+        cm = _vec2(owner, "cm", cm) if cm is not None else tuple(np.mean(pts, axis=0).tolist())
+        b = Body(name, joints, mass, J, cm)
+        self.bodies[name] = b
+        for j in joints[1:]:
+            self.graph.add_edge(joints[0], j, key=f"{name}:{j}", kind="body", component=b)
+        if len(joints) == 1:
+            self.graph.nodes[joints[0]].setdefault("bodies", []).append(name)
+        return b
+
+    def point_mass(self, joint: str, mass: float, J: float = 0.0) -> PointMass:
+        """Add a lumped mass [kg] (and rotary inertia ``J`` [kg m^2]) at a joint."""
+        owner = f"point mass at '{joint}'"
+        self._check_joint(owner, joint)
+        pm = PointMass(joint, _number(owner, "mass", mass, nonneg=True),
+                       _number(owner, "J", J, nonneg=True))
+        self.point_masses.append(pm)
+        return pm
+
+    def spring(self, name: str, a: str, b: str | None = None, *, k: float, axis=(0.0, 1.0),
+               k3: float = 0.0, preload: float = 0.0) -> Spring:
+        """Add a translational spring along a fixed global axis.
+
+        Parameters
+        ----------
+        name : str
+            Spring name.
+        a : str
+            Joint the spring acts on.
+        b : str, optional
+            Second joint; ``None`` anchors the spring to the frame.
+        k : float
+            Linear stiffness [N/m] (>= 0).
+        axis : (float, float)
+            Line of action (normalised here).
+        k3 : float
+            Cubic stiffness [N/m^3]: force ``preload + k d + k3 d^3`` for the
+            extension ``d`` [m] from the reference configuration.
+        preload : float
+            Force [N] in the reference configuration (tension positive).
+        """
+        self._check_component_name("spring", name)
+        owner = f"spring '{name}'"
+        self._check_joint(owner, a)
+        if b is not None:
+            self._check_joint(owner, b)
+            if b == a:
+                raise InputError(f"{owner}: both ends at joint '{a}'")
+        ax = np.asarray(_vec2(owner, "axis", axis))
+        nrm = float(np.hypot(*ax))
+        if nrm == 0.0:
+            raise InputError(f"{owner}: axis must be a non-zero vector")
+        s = Spring(name, a, b, _number(owner, "k", k, nonneg=True), tuple((ax / nrm).tolist()),
+                   _number(owner, "k3", k3), _number(owner, "preload", preload))
+        self.springs[name] = s
+        self.graph.add_edge(a, b if b is not None else a, key=name, kind="spring", component=s)
+        return s
+
+    def torsional_spring(self, name: str, joint: str, member: str, other: str | None = None, *,
+                         k: float, preload: float = 0.0) -> TorsionalSpring:
+        """Add a torsional spring [N m/rad] between two members at a joint.
+
+        ``other=None`` ties ``member`` to the frame. Members are links or bodies
+        attached at ``joint``.
+        """
+        self._check_component_name("torsional spring", name)
+        owner = f"torsional spring '{name}'"
+        self._check_joint(owner, joint)
+        for mem in (member, other):
+            if mem is None:
+                continue
+            if mem not in self.links and mem not in self.bodies:
+                raise InputError(f"{owner} names unknown member '{mem}'")
+            if joint not in self._member_joints(mem):
+                raise InputError(f"{owner}: member '{mem}' is not attached at joint '{joint}'")
+        if other is None and not self.joints[joint].grounded:
+            raise InputError(f"{owner}: other=None ties to the frame, but joint '{joint}' is not a ground joint")
+        ts = TorsionalSpring(name, joint, member, other, _number(owner, "k", k, nonneg=True),
+                             _number(owner, "preload", preload))
+        self.torsional_springs[name] = ts
+        self.graph.add_edge(joint, joint, key=name, kind="torsional_spring", component=ts)
+        return ts
+
+    def drive(self, member: str, speed: float, torsional_stiffness: float | None = None) -> Drive:
+        """Drive a link or body at constant speed about its ground joint.
+
+        Parameters
+        ----------
+        member : str
+            Link or body with exactly one ground joint.
+        speed : float
+            Input speed [rad/s], + counter-clockwise. Several drives are
+            synchronised: their speeds must be integer multiples of the first.
+        torsional_stiffness : float, optional
+            Stiffness of the drive shaft [N m/rad] tying the member to the motor.
+        """
+        owner = f"drive on '{member}'"
+        if member not in self.links and member not in self.bodies:
+            raise InputError(f"{owner}: unknown link or body '{member}'")
+        if member in self.links and not self.links[member].kinematic:
+            raise InputError(f"{owner}: '{member}' has kinematic=False and cannot be driven")
+        if any(d.member == member for d in self.drives):
+            raise InputError(f"{owner}: '{member}' is driven twice")
+        speed = _number(owner, "speed", speed)
+        grounds = [j for j in self._member_joints(member) if self.joints[j].grounded]
+        if len(grounds) != 1:
+            raise InputError(f"{owner}: a driven member needs exactly one ground joint, "
+                             f"'{member}' has {len(grounds)} ({', '.join(grounds) or 'none'})")
+        kt = None
+        if torsional_stiffness is not None:
+            kt = _number(owner, "torsional_stiffness", torsional_stiffness, positive=True)
+        if self.drives:
+            if speed == 0.0 or self.drives[0].speed == 0.0:
+                raise InputError(f"{owner}: synchronised drives need non-zero speeds")
+            ratio = speed / self.drives[0].speed
+            if abs(ratio - round(ratio)) > 1e-9:
+                raise InputError(f"{owner}: speed {speed} rad/s is not an integer multiple of the first "
+                                 f"drive's {self.drives[0].speed} rad/s, so the motion is not periodic "
+                                 "over the first drive's cycle")
+        d = Drive(member, speed, grounds[0], kt)
+        self.drives.append(d)
+        return d
+
+    def load(self, name: str, joint: str, force) -> Load:
+        """Add a constant external force [N] (global components) at a joint."""
+        owner = f"load '{name}'"
+        if name in self.loads or name in self.frictions:
+            raise InputError(f"{self.name}: load name '{name}' is used twice")
+        self._check_joint(owner, joint)
+        ld = Load(name, joint, _vec2(owner, "force", force))
+        self.loads[name] = ld
+        return ld
+
+    def friction(self, name: str, joint: str, force: float, axis, *, reference_speed: float = 0.0,
+                 smoothing: float = 1e-3, follows: str = "rigid") -> Friction:
+        """Add a friction force opposing the joint's motion along ``axis``.
+
+        Parameters
+        ----------
+        name : str
+            Load name.
+        joint : str
+            Joint the force acts on.
+        force : float
+            Magnitude [N].
+        axis : (float, float)
+            Direction along which the velocity is measured and the force acts.
+        reference_speed : float
+            Speed [m/s] of the counter-body along ``axis`` (e.g. the strand's
+            casting speed); the force follows the sign of the relative speed.
+        smoothing : float
+            Regularisation speed [m/s] of the sign function (``tanh``).
+        follows : {"rigid", "total"}
+            Velocity used: rigid-body only, or rigid plus elastic (iterated).
+        """
+        owner = f"friction '{name}'"
+        if name in self.loads or name in self.frictions:
+            raise InputError(f"{self.name}: load name '{name}' is used twice")
+        self._check_joint(owner, joint)
+        ax = np.asarray(_vec2(owner, "axis", axis))
+        nrm = float(np.hypot(*ax))
+        if nrm == 0.0:
+            raise InputError(f"{owner}: axis must be a non-zero vector")
+        if follows not in ("rigid", "total"):
+            raise InputError(f"{owner}: follows must be 'rigid' or 'total', got {follows!r}")
+        fr = Friction(name, joint, _number(owner, "force", force, nonneg=True), tuple((ax / nrm).tolist()),
+                      _number(owner, "reference_speed", reference_speed),
+                      _number(owner, "smoothing", smoothing, positive=True), follows)
+        self.frictions[name] = fr
+        return fr
+
+    def set_gravity(self, g) -> None:
+        """Set the gravity vector [m/s^2] used by the ``gravity`` effect."""
+        self.gravity = _vec2(self.name, "gravity", g)
+
+    # ------------------------------------------------------------------ queries
+    def _member_joints(self, member: str) -> tuple[str, ...]:
+        if member in self.links:
+            return self.links[member].joints
+        return self.bodies[member].joints
+
+    def members_at(self, joint: str) -> list[str]:
+        """Links and bodies attached at ``joint``, in definition order."""
+        out = [n for n, lk in self.links.items() if joint in lk.joints]
+        out += [n for n, b in self.bodies.items() if joint in b.joints]
+        return out
+
+    @property
+    def flexible_links(self) -> list[Link]:
+        """Flexible links in definition order."""
+        return [lk for lk in self.links.values() if not lk.rigid]
+
+    def driven(self, member: str) -> Drive | None:
+        """The drive of ``member`` or None."""
+        for d in self.drives:
+            if d.member == member:
+                return d
+        return None
+
+    @property
+    def period(self) -> float:
+        """Cycle period ``2 pi / |speed|`` of the first drive [s]."""
+        if not self.drives:
+            raise InputError(f"{self.name}: has no drive, so it has no cycle")
+        w = self.drives[0].speed
+        if w == 0.0:
+            raise InputError(f"{self.name}: the first drive's speed is zero, so there is no cycle")
+        return 2.0 * math.pi / abs(w)
+
+    def validate(self) -> None:
+        """Check global consistency; raise :class:`InputError` naming the problem.
+
+        Checks: at least one member; every joint used by a member; the graph
+        of joints and members (plus the frame) connected; every flexible
+        link has a length; drives on members with one ground joint.
+        """
+        if not self.links and not self.bodies:
+            raise InputError(f"{self.name}: has no links or bodies")
+        used = set()
+        for lk in self.links.values():
+            used.update(lk.joints)
+        for b in self.bodies.values():
+            used.update(b.joints)
+        unused = [j for j in self.joints if j not in used]
+        if unused:
+            raise InputError(f"{self.name}: joint(s) {', '.join(unused)} belong to no link or body")
+        g = nx.Graph()
+        g.add_nodes_from(self.joints)
+        for lk in self.links.values():
+            g.add_edge(lk.a, lk.b)
+        for b in self.bodies.values():
+            for j in b.joints[1:]:
+                g.add_edge(b.joints[0], j)
+        grounded = [j.name for j in self.joints.values() if j.kind in ("ground", "slider")]
+        if grounded:
+            g.add_node(GROUND)
+            for j in grounded:
+                g.add_edge(GROUND, j)
+        comps = list(nx.connected_components(g))
+        if len(comps) > 1:
+            parts = sorted((sorted(c - {GROUND}) for c in comps), key=len)
+            raise InputError(f"{self.name}: the mechanism graph is disconnected; separate parts: "
+                             + "; ".join("{" + ", ".join(p) + "}" for p in parts))
+        for d in self.drives:
+            if d.member not in self.links and d.member not in self.bodies:
+                raise InputError(f"drive on '{d.member}': unknown member")
+
+    def with_speed(self, speed: float) -> "Mechanism":
+        """A copy whose drives run at ``speed`` [rad/s] (first drive; the others keep their ratio)."""
+        import copy
+        if not self.drives:
+            raise InputError(f"{self.name}: has no drive to set a speed on")
+        speed = _number(f"{self.name}", "speed", speed)
+        if speed == 0.0:
+            raise InputError(f"{self.name}: speed must be non-zero: a scene needs a cycle of the drive")
+        new = copy.deepcopy(self)
+        ratio = speed / self.drives[0].speed
+        new.drives = [Drive(d.member, d.speed * ratio, d.ground_joint, d.torsional_stiffness)
+                      for d in self.drives]
+        return new
+
+    def summary(self) -> str:
+        """One-line-per-component text description."""
+        lines = [f"Mechanism '{self.name}': {len(self.joints)} joints, {len(self.links)} links, "
+                 f"{len(self.bodies)} bodies, {len(self.drives)} drives"]
+        for lk in self.links.values():
+            kind = "rigid" if lk.rigid else f"flexible, {lk.elements} el."
+            lines.append(f"  link {lk.name}: {lk.a} -> {lk.b}, L = {lk.length:.6g} m, {kind}")
+        for b in self.bodies.values():
+            lines.append(f"  body {b.name}: joints {', '.join(b.joints)}, m = {b.mass:.6g} kg")
+        return "\n".join(lines)

@@ -1,0 +1,519 @@
+"""Collocation time elements for the periodic steady state of ``M u'' + C u' + K u = Q``.
+
+Each time element ``[t_k, t_k + h]`` is an implicit Runge-Kutta collocation
+step (Hairer & Wanner, *Solving ODEs II*, IV.5): the equations of motion hold
+exactly at the ``s`` collocation instants ``t_k + c_j h`` with the true
+``M, C, K, Q`` of each instant, nothing is held over the element. With the
+state ``z = [u; v]`` and the stage accelerations ``a_j = u''(t_k + c_j h)``::
+
+    V_j = v_k + h sum_l A_jl a_l
+    U_j = u_k + h c_j v_k + h^2 sum_l (A^2)_jl a_l
+    M_j a_j + C_j V_j + K_j U_j = Q_j,          j = 1..s
+
+is one linear system of size ``s N`` per element (no inverse of ``M``):
+``W a = q - R z_k`` with blocks ``W_jl = delta_jl M_j + h A_jl C_j + h^2
+(A^2)_jl K_j`` and ``R_j = [K_j, C_j + h c_j K_j]``. The element end is
+``u_{k+1} = u_k + h v_k + h^2 (b A) a``, ``v_{k+1} = v_k + h b a``, so each
+element is an affine map ``z_{k+1} = P_k z_k + p_k`` that goes through the
+same block-cyclic condensation as the exponential holds
+(:func:`kedfem.solvers.periodic.solve_cyclic`): Floquet multipliers, instability
+fallback and streaming are shared.
+
+Schemes (``s`` stages; order at the element ends / stage order):
+
+``"radau2"``, ``"radau3"``
+    Radau IIA, orders 3 and 5 / 2 and 3. L-stable: modes the elements do not
+    resolve (the stiff axial couplings of closed loops, ``omega h >> 1``) are
+    damped to their quasi-static response at the exact ``K(t)`` of each
+    instant instead of ringing. Stiffly accurate (``c_s = 1``).
+``"gauss2"``, ``"gauss3"``
+    Gauss-Legendre, orders 4 and 6 / 2 and 3. A-stable and symmetric:
+    ``|R(iy)| = 1``, so it neither damps nor excites an undamped mode and the
+    moduli of its Floquet multipliers do not hide a parametric instability;
+    not L-stable, so stiff modes it does not resolve keep multipliers close
+    to the unit circle (use Radau IIA for the response).
+
+The response between element ends is the collocation polynomial of degree
+``s`` through ``z_k`` and the stage states (:func:`dense`).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+from functools import lru_cache
+from types import MappingProxyType
+from typing import Mapping
+
+import numpy as np
+import scipy.linalg as sla
+from numpy.polynomial import Polynomial
+from numpy.polynomial import legendre as npleg
+
+from ..errors import InputError
+from .periodic import (MAX_CONDITION, MIN_NODES, _check_mass, _run_parallel, _Source, _split,
+                       default_workers, solve_cyclic)
+
+__all__ = ["Tableau", "tableau", "SCHEMES", "solve", "CollocationSolution", "dense", "instants"]
+
+log = logging.getLogger(__name__)
+
+#: Collocation schemes: name -> (family, stages).
+SCHEMES = {"radau2": ("radau", 2), "radau3": ("radau", 3), "gauss2": ("gauss", 2),
+           "gauss3": ("gauss", 3)}
+
+
+@dataclass(frozen=True)
+class Tableau:
+    """Butcher tableau of a collocation method.
+
+    Attributes
+    ----------
+    name : str
+    family : {"radau", "gauss"}
+    c : ndarray, shape (s,)
+        Collocation nodes as fractions of the element.
+    A : ndarray, shape (s, s)
+        ``A_ij = int_0^{c_i} l_j``, ``l_j`` the Lagrange basis on ``c``.
+    b : ndarray, shape (s,)
+        ``b_j = int_0^1 l_j``.
+    order : int
+        Classical order at the element ends (``2s - 1`` Radau IIA, ``2s`` Gauss).
+    stage_order : int
+        Order of the collocation polynomial between the ends (``s``).
+    l_stable : bool
+    """
+
+    name: str
+    family: str
+    c: np.ndarray
+    A: np.ndarray
+    b: np.ndarray
+    order: int
+    stage_order: int
+    l_stable: bool
+
+    @property
+    def s(self) -> int:
+        """Number of stages."""
+        return int(self.c.size)
+
+    @property
+    def A2(self) -> np.ndarray:
+        """``A @ A``: the double integral of the stage accelerations."""
+        return self.A @ self.A
+
+    @property
+    def bA(self) -> np.ndarray:
+        """``b @ A``."""
+        return self.b @ self.A
+
+
+@lru_cache(maxsize=None)
+def tableau(name: str) -> Tableau:
+    """Tableau of a collocation scheme (see :data:`SCHEMES`), computed from its nodes.
+
+    Gauss nodes are the zeros of the shifted Legendre polynomial ``P_s(2x-1)``;
+    Radau IIA nodes the zeros of ``P_s(2x-1) - P_{s-1}(2x-1)`` (the last is 1).
+    """
+    if name not in SCHEMES:
+        raise InputError(f"unknown collocation scheme {name!r}; valid: {', '.join(SCHEMES)}")
+    family, s = SCHEMES[name]
+    coef = np.zeros(s + 1)
+    coef[s] = 1.0
+    if family == "radau":
+        coef[s - 1] = -1.0
+    x = np.sort(npleg.legroots(coef).real)
+    c = 0.5 * (x + 1.0)
+    if family == "radau":
+        c[-1] = 1.0
+    A = np.empty((s, s))
+    b = np.empty(s)
+    for j in range(s):
+        others = np.delete(c, j)
+        lj = Polynomial.fromroots(others) / np.prod(c[j] - others)
+        Lj = lj.integ()
+        A[:, j] = Lj(c) - Lj(0.0)
+        b[j] = Lj(1.0) - Lj(0.0)
+    order = 2 * s - 1 if family == "radau" else 2 * s
+    return Tableau(name, family, c, A, b, order, s, family == "radau")
+
+
+def instants(name: str, n: int, period: float, edges=None) -> np.ndarray:
+    """Collocation instants ``t_k + c_j h_k`` of ``n`` elements, shape (n, s) [s].
+
+    ``edges`` (n + 1,) [s] gives non-uniform elements (default ``k T / n``).
+    For Radau IIA the last instant of the last element is ``period`` itself.
+    """
+    tab = tableau(name)
+    if edges is None:
+        h = period / n
+        return (np.arange(n)[:, None] + tab.c[None, :]) * h
+    e = np.asarray(edges, dtype=float)
+    return e[:-1, None] + tab.c[None, :] * np.diff(e)[:, None]
+
+
+@dataclass(frozen=True)
+class CollocationSolution:
+    """Periodic steady state of a collocation discretisation.
+
+    Attributes
+    ----------
+    t : ndarray, shape (n,)
+        Element starts [s] (``k T / n`` unless graded).
+    U, V : ndarray, shape (n, N)
+        Displacements and velocities at the element starts.
+    stage_U, stage_V : ndarray, shape (n, s, N)
+        The same at the collocation instants (``instants(scheme, n, T)``).
+    scheme : str
+    floquet_multipliers : ndarray of complex, shape (2N,)
+        Eigenvalues of the discrete monodromy matrix, by decreasing modulus.
+    stable : bool
+    residual : float
+        Relative residual of the block-cyclic system.
+    monodromy : ndarray, shape (2N, 2N)
+    method : str
+        ``"condensation"`` or ``"cyclic-lu"``.
+    period : float
+    condition : float
+        Condition estimate of ``I - Phi`` (balanced).
+    passes : int
+    timings : Mapping[str, float]
+    edges : ndarray, shape (n + 1,)
+        Element edges [s].
+    """
+
+    t: np.ndarray
+    U: np.ndarray
+    V: np.ndarray
+    stage_U: np.ndarray
+    stage_V: np.ndarray
+    scheme: str
+    floquet_multipliers: np.ndarray
+    stable: bool
+    residual: float
+    monodromy: np.ndarray
+    method: str
+    period: float
+    condition: float
+    passes: int
+    timings: Mapping[str, float] = field(default_factory=dict)
+    edges: np.ndarray | None = None
+
+    @property
+    def n(self) -> int:
+        """Number of time elements."""
+        return int(self.t.shape[0])
+
+    @property
+    def hold(self) -> str:
+        """The scheme (the name the exponential holds use for theirs)."""
+        return self.scheme
+
+    @property
+    def spectral_radius(self) -> float:
+        """Largest Floquet multiplier modulus."""
+        return float(np.abs(self.floquet_multipliers).max()) if self.floquet_multipliers.size else 0.0
+
+    def at(self, t) -> tuple[np.ndarray, np.ndarray]:
+        """Displacements and velocities at any instants of the cycle (collocation polynomial).
+
+        Parameters
+        ----------
+        t : array_like of float, shape (k,)
+            Instants [s] (taken modulo the period).
+
+        Returns
+        -------
+        U, V : ndarray, shape (k, N)
+        """
+        N = self.U.shape[1]
+        Z = np.concatenate([self.U, self.V], axis=1)
+        S = np.concatenate([self.stage_U, self.stage_V], axis=2)
+        out = dense(self.scheme, Z, S, self.period, t, self.edges)
+        return out[:, :N], out[:, N:]
+
+
+def dense(name: str, Z: np.ndarray, stages: np.ndarray, period: float, t, edges=None) -> np.ndarray:
+    """Evaluate the collocation polynomials at instants ``t``.
+
+    Parameters
+    ----------
+    name : str
+        Scheme.
+    Z : ndarray, shape (n, m)
+        States at the element starts.
+    stages : ndarray, shape (n, s, m)
+        States at the collocation instants.
+    period : float
+        [s].
+    t : array_like, shape (k,)
+        Instants [s], taken modulo ``period``.
+    edges : array_like, shape (n + 1,), optional
+        Element edges [s] (default uniform).
+
+    Returns
+    -------
+    ndarray, shape (k, m)
+    """
+    tab = tableau(name)
+    n = Z.shape[0]
+    tt = np.mod(np.asarray(t, dtype=float), period)
+    if edges is None:
+        x = tt * (n / period)
+        k = np.minimum(np.floor(x).astype(int), n - 1)
+        theta = x - k
+    else:
+        e = np.asarray(edges, dtype=float)
+        k = np.clip(np.searchsorted(e, tt, side="right") - 1, 0, n - 1)
+        theta = (tt - e[k]) / (e[k + 1] - e[k])
+    nodes = np.concatenate([[0.0], tab.c])
+    # Lagrange weights on (0, c_1 .. c_s), shape (k, s + 1)
+    diff = theta[:, None] - nodes[None, :]
+    w = np.empty((theta.size, nodes.size))
+    for j in range(nodes.size):
+        others = np.delete(np.arange(nodes.size), j)
+        w[:, j] = np.prod(diff[:, others], axis=1) / np.prod(nodes[j] - nodes[others])
+    return w[:, :1] * Z[k] + np.einsum("ks,ksm->km", w[:, 1:], stages[k])
+
+
+# --------------------------------------------------------------------------
+# Element transitions
+# --------------------------------------------------------------------------
+
+class _Elements:
+    """Transition source of :func:`kedfem.solvers.periodic.solve_cyclic` for a collocation scheme.
+
+    Data are given at the collocation instants, flattened element by element
+    (instant ``k s + j`` is stage ``j`` of element ``k``).
+    """
+
+    def __init__(self, tab: Tableau, Ms, Cs, Ks, Qs, n, N, period, workers, edges=None):
+        self.tab = tab
+        self.Ms, self.Cs, self.Ks, self.Qs = Ms, Cs, Ks, Qs
+        self.n, self.N, self.m = n, N, 2 * N
+        self.h = np.full(n, period / n) if edges is None else np.diff(np.asarray(edges, float))
+        self.workers = workers
+        self.chunk = 1
+        self.invariant = Ms.const and Cs.const and Ks.const and edges is None
+        self._inv = None
+        self._kept: dict[tuple[int, int], np.ndarray] = {}
+        self.keep_ops = False
+
+    def bounds(self):
+        for a in range(0, self.n, self.chunk):
+            yield a, min(self.n, a + self.chunk)
+
+    def _data(self, a, b):
+        s, N = self.tab.s, self.N
+        idx = np.arange(a * s, b * s)
+        L = b - a
+
+        def get(src):
+            X = src.get(idx, N)
+            return X if X.ndim == 2 else X.reshape((L, s) + X.shape[1:])
+
+        Q = self.Qs.get(idx, N).reshape(L, s, N)
+        return get(self.Ms), get(self.Cs), get(self.Ks), Q
+
+    def _W(self, M, C, K, h):
+        """Stage matrices W, shape (L, sN, sN) (or (sN, sN) for constant data).
+
+        ``h`` (L,) element lengths [s] (a scalar for constant data).
+        """
+        tab = self.tab
+        s, N = tab.s, self.N
+        const = M.ndim == 2
+        if const:
+            M, C, K = (np.broadcast_to(X, (s, N, N))[None] for X in (M, C, K))
+        h = np.reshape(np.asarray(h, dtype=float), (-1, 1, 1, 1, 1))
+        Is = np.eye(s)
+        W = (Is[None, :, None, :, None] * M[:, :, :, None, :]
+             + h * tab.A[None, :, None, :, None] * C[:, :, :, None, :]
+             + h * h * tab.A2[None, :, None, :, None] * K[:, :, :, None, :])
+        W = W.reshape(W.shape[0], s * N, s * N)
+        return W[0] if const else W
+
+    def _R(self, C, K, h):
+        """``-R_j = -[K_j, C_j + h c_j K_j]``, shape (L, s, N, 2N) (or (s, N, 2N))."""
+        tab = self.tab
+        s, N = tab.s, self.N
+        if K.ndim == 2:
+            K = np.broadcast_to(K, (s, N, N))
+            C = np.broadcast_to(C, (s, N, N))
+            return -np.concatenate([K, C + (float(h) * tab.c)[:, None, None] * K], axis=-1)
+        hc = np.asarray(h, dtype=float)[:, None, None, None] * tab.c[None, :, None, None]
+        return -np.concatenate([K, C + hc * K], axis=-1)
+
+    def _ops(self, a, b):
+        """``X = W^-1 [-R | q]`` per element, shape (L, sN, 2N + 1)."""
+        key = (a, b)
+        if key in self._kept:
+            return self._kept[key]
+        tab, N, s = self.tab, self.N, self.tab.s
+        M, C, K, Q = self._data(a, b)
+        L = b - a
+        h = self.h[a:b]
+        if self.invariant:
+            if self._inv is None:
+                _check_mass(M, np.array([0]))
+                lu = sla.lu_factor(self._W(M, C, K, h[0]))
+                XR = sla.lu_solve(lu, self._R(C, K, h[0]).reshape(s * N, 2 * N))
+                self._inv = (lu, XR)
+            lu, XR = self._inv
+            Xq = sla.lu_solve(lu, Q.reshape(L, s * N).T).T
+            X = np.concatenate([np.broadcast_to(XR, (L, s * N, 2 * N)), Xq[:, :, None]], axis=2)
+        else:
+            if M.ndim == 2:
+                _check_mass(M, np.array([0]))
+            else:
+                _check_mass(M.reshape((L * s, N, N)), np.arange(a * s, b * s))
+            X = np.empty((L, s * N, 2 * N + 1))
+            Mb, Cb, Kb = (np.broadcast_to(X_, (L, s, N, N)) if X_.ndim == 2 else X_ for X_ in (M, C, K))
+            R = self._R(Cb, Kb, h)
+
+            def work(i, lo, hi):
+                W = self._W(Mb[lo:hi], Cb[lo:hi], Kb[lo:hi], h[lo:hi])
+                rhs = np.concatenate([R[lo:hi].reshape(hi - lo, s * N, 2 * N),
+                                      Q[lo:hi].reshape(hi - lo, s * N, 1)], axis=2)
+                X[lo:hi] = np.linalg.solve(W, rhs)
+
+            _run_parallel(work, _split(L, self.workers))
+        if self.keep_ops:
+            self._kept[key] = X
+        return X
+
+    def compute(self, a, b):
+        """Transitions ``(P (L, 2N, 2N), p (L, 2N))`` of elements ``a..b-1``."""
+        tab, N, s = self.tab, self.N, self.tab.s
+        h = self.h[a:b]
+        X = self._ops(a, b).reshape(b - a, s, N, 2 * N + 1)
+        du = np.einsum("l,j,ljnk->lnk", h * h, tab.bA, X)
+        dv = np.einsum("l,j,ljnk->lnk", h, tab.b, X)
+        P = np.concatenate([du[..., :2 * N], dv[..., :2 * N]], axis=1)
+        P[:, np.arange(N), np.arange(N)] += 1.0
+        P[:, np.arange(N), N + np.arange(N)] += h[:, None]
+        P[:, N + np.arange(N), N + np.arange(N)] += 1.0
+        p = np.concatenate([du[..., 2 * N], dv[..., 2 * N]], axis=1)
+        if self.invariant:
+            return P[0], p
+        return P, p
+
+    def stages(self, a, b, Z):
+        """Stage states ``(U_j, V_j)`` of elements ``a..b-1`` from their start states Z (L, 2N)."""
+        tab, N, s = self.tab, self.N, self.tab.s
+        h = self.h[a:b, None, None]
+        L = b - a
+        X = self._ops(a, b).reshape(L, s, N, 2 * N + 1)
+        acc = np.einsum("ljnk,lk->ljn", X[..., :2 * N], Z) + X[..., 2 * N]
+        u0, v0 = Z[:, None, :N], Z[:, None, N:]
+        V = v0 + h * np.einsum("jl,kln->kjn", tab.A, acc)
+        U = u0 + h * tab.c[None, :, None] * v0 + h * h * np.einsum("jl,kln->kjn", tab.A2, acc)
+        return U, V
+
+
+def _resolve(name, Ms, Cs, Ks, Qs, n, s):
+    counts = {src.name: src.n for src in (Ms, Cs, Ks, Qs) if src.n is not None}
+    if n is not None:
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)):
+            raise InputError(f"n must be an integer, got {n!r}")
+        counts["n * s"] = int(n) * s
+    if not counts:
+        raise InputError("cannot infer the number of time elements: pass n=...")
+    if len(set(counts.values())) > 1:
+        raise InputError("inconsistent numbers of collocation instants: "
+                         + ", ".join(f"{k} has {v}" for k, v in counts.items()))
+    total = next(iter(counts.values()))
+    if total % s:
+        raise InputError(f"{name} has {s} instants per element: the data must have a multiple "
+                         f"of {s} rows (element k at rows k*{s}..k*{s}+{s - 1}), got {total}")
+    n_ = total // s
+    if n_ < MIN_NODES:
+        raise InputError(f"need at least {MIN_NODES} time elements per period, got n = {n_}")
+    Ns = {src.name: src.N for src in (Ms, Cs, Ks, Qs) if src.N is not None}
+    if not Ns:
+        out = np.asarray(Qs.value(np.array([0])))
+        Ns[Qs.name] = out.shape[-1]
+    if len(set(Ns.values())) > 1:
+        raise InputError("inconsistent numbers of DOFs: " + ", ".join(f"{k} has {v}" for k, v in Ns.items()))
+    return n_, next(iter(Ns.values()))
+
+
+def solve(M, C, K, Q, period: float, scheme: str = "radau3", *, n: int | None = None,
+          edges=None, method: str = "auto", memory_budget: float = 256e6,
+          max_condition: float = MAX_CONDITION, workers: int | None = None) -> CollocationSolution:
+    """Periodic steady state of ``M u'' + C u' + K u = Q`` by collocation time elements.
+
+    Parameters
+    ----------
+    M, C, K : ndarray, shape (n s, N, N) or (N, N), or callable
+        Mass [kg], damping [N s/m], stiffness [N/m] at the collocation
+        instants :func:`instants` ``(scheme, n, period).ravel()`` (element by
+        element), or constant; a callable ``f(idx)`` of instant indices.
+    Q : ndarray, shape (n s, N), or callable
+        Load [N] at the same instants.
+    period : float
+        Period ``T`` [s].
+    scheme : {"radau2", "radau3", "gauss2", "gauss3"}
+    n : int, optional
+        Number of time elements (needed only when nothing is sampled).
+    edges : array_like, shape (n + 1,), optional
+        Element edges [s], increasing from 0 to ``period`` (graded
+        elements; default ``k T / n``).
+    method, memory_budget, max_condition, workers
+        As in :func:`kedfem.solvers.periodic.solve`.
+
+    Returns
+    -------
+    CollocationSolution
+
+    Raises
+    ------
+    InputError, SingularMassError, ResonanceError
+        As :func:`kedfem.solvers.periodic.solve`.
+    """
+    from .periodic import _blas_one_thread, check_period
+    t_start = time.perf_counter()
+    tab = tableau(scheme)
+    period = check_period(period)
+    if not (isinstance(memory_budget, (int, float, np.integer, np.floating)) and memory_budget > 0):
+        raise InputError(f"memory_budget must be a positive number of bytes, got {memory_budget!r}")
+    Ms, Cs, Ks, Qs = (_Source("M", M, True), _Source("C", C, True), _Source("K", K, True),
+                      _Source("Q", Q, False))
+    n, N = _resolve(scheme, Ms, Cs, Ks, Qs, n, tab.s)
+    if workers is None:
+        workers = default_workers()
+    elif not (isinstance(workers, (int, np.integer)) and workers >= 1):
+        raise InputError(f"workers must be a positive integer or None, got {workers!r}")
+    s = tab.s
+    if edges is not None:
+        edges = np.asarray(edges, dtype=float)
+        if edges.shape != (n + 1,) or not np.all(np.diff(edges) > 0) \
+                or abs(edges[0]) > 1e-12 * period or abs(edges[-1] - period) > 1e-12 * period:
+            raise InputError(f"edges must be {n + 1} increasing instants from 0 to the period "
+                             f"{period:.6g} s, got shape {edges.shape}")
+    elems = _Elements(tab, Ms, Cs, Ks, Qs, n, N, period, int(workers), edges)
+    ops_bytes = n * s * N * (2 * N + 1) * 8
+    elems.keep_ops = ops_bytes <= memory_budget / 4
+    per_element = 8.0 * (3 * (s * N) ** 2 + 4 * s * N * (2 * N + 1) + 3 * s * N * N)
+    timings: dict[str, float] = {}
+    with _blas_one_thread():
+        cyc = solve_cyclic(elems, per_element, method=method, memory_budget=memory_budget,
+                           max_condition=max_condition, timings=timings, t_start=t_start)
+        t0 = time.perf_counter()
+        SU = np.empty((n, s, N))
+        SV = np.empty((n, s, N))
+        for a, b in elems.bounds():
+            SU[a:b], SV[a:b] = elems.stages(a, b, cyc.Z[a:b])
+    timings["stages"] = time.perf_counter() - t0
+    timings["total"] = time.perf_counter() - t_start
+    log.info("collocation.solve(%s): n=%d N=%d rho=%.4g %.3f s", scheme, n, N,
+             float(np.abs(cyc.multipliers).max()) if cyc.multipliers.size else 0.0, timings["total"])
+    return CollocationSolution(
+        t=np.arange(n) * (period / n) if edges is None else edges[:-1].copy(),
+        U=cyc.Z[:, :N].copy(), V=cyc.Z[:, N:].copy(),
+        stage_U=SU, stage_V=SV, scheme=scheme, floquet_multipliers=cyc.multipliers,
+        stable=cyc.stable, residual=cyc.residual, monodromy=cyc.monodromy, method=cyc.method,
+        period=period, condition=cyc.condition, passes=cyc.passes + (0 if elems.keep_ops else 1),
+        timings=MappingProxyType(timings), edges=edges)

@@ -1,0 +1,339 @@
+"""Periodic response of systems with state-dependent terms (paper section 4).
+
+The equation ``(M + dM) u'' + (C + dC) u' + (K + dK) u = Q + dQ`` has parts
+``dM, dC, dK, dQ`` that depend on the response itself (geometric non-linearity,
+non-linear springs, friction following the velocity sign, ...). They are supplied
+by a callback ``state_terms(U, V) -> (dM, dC, dK, dQ)`` evaluated on a trial
+periodic response ``U, V`` at the time nodes; the linear periodic problem with
+the terms frozen is solved by :func:`kedfem.solvers.periodic.solve`; this is the map
+``G``. The iteration looks for a fixed point of ``G``:
+
+``"fixed-point"``
+    The paper's iteration ``x_{i+1} = G(x_i)``.
+``"relaxation"``
+    ``x_{i+1} = (1 - w) x_i + w G(x_i)`` with ``0 < w <= 1`` (``relaxation``).
+``"anderson"``
+    Anderson acceleration, type II (Walker & Ni 2011), on the stacked vector
+    ``x = [U, V T / (2 pi)]`` (velocities scaled to displacement units) with the
+    last ``depth`` differences.
+
+The first iterate is the linear solve with the state terms evaluated at the zero
+response ``U = V = 0`` (which is the paper's linear first step whenever the terms
+vanish at zero). Convergence is the paper's Eq. 21,
+``||U_G - U_i||_F / ||U_G||_F <= eps`` with ``U_G = G(x_i)`` (the paper writes the
+ratio times 100 % against a percentage; here ``eps`` is a fraction). For the
+plain iteration ``U_G`` is the next iterate, so this is literally Eq. 21; for the
+accelerated methods it is the same fixed-point residual, not the (damped) step.
+A zero change over a zero response counts as converged (no 0/0).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import warnings
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from . import periodic
+from ..errors import ConvergenceWarning, InputError, UnboundedResponseError
+
+__all__ = ["solve", "fixed_point", "NonlinearResult", "NONLINEAR_METHODS"]
+
+log = logging.getLogger(__name__)
+
+NONLINEAR_METHODS = ("fixed-point", "relaxation", "anderson")
+#: Stop as diverging when the change grows this much above its smallest value...
+DIVERGENCE_FACTOR = 1e4
+#: ... or when the response grows this much beyond the first (linear) solve.
+GROWTH_LIMIT = 1e8
+
+StateTerms = Callable[[np.ndarray, np.ndarray], tuple]
+
+
+@dataclass(frozen=True)
+class NonlinearResult:
+    """Outcome of the non-linear periodic iteration.
+
+    Attributes
+    ----------
+    solution : PeriodicSolution
+        Linear periodic solution with the state terms evaluated at the last
+        accepted iterate (when converged: the fixed point to ``eps``).
+    iterations : int
+        Number of linear periodic solves.
+    history : ndarray, shape (iterations,)
+        Relative change ``||U_G - U_i||_F / ||U_G||_F`` of each solve (Eq. 21).
+    converged : bool
+    message : str
+    method : str
+    """
+
+    solution: periodic.PeriodicSolution
+    iterations: int
+    history: np.ndarray
+    converged: bool
+    message: str
+    method: str
+
+
+def _add(base, extra, name, shape, it):
+    if extra is None:
+        return base
+    extra = np.asarray(extra, dtype=float)
+    if extra.shape != shape:
+        raise InputError(f"state_terms returned {name} with shape {extra.shape} at iteration "
+                         f"{it}; expected {shape} (or None)")
+    bad = ~np.isfinite(extra)
+    if bad.any():
+        raise InputError(f"state_terms returned a non-finite {name} at iteration {it}, index "
+                         f"{tuple(int(i) for i in np.argwhere(bad)[0])}")
+    return base + extra  # broadcasting lifts constant (N, N) bases to (n, N, N)
+
+
+def solve(M, C, K, Q, period: float, state_terms: StateTerms, hold: str = "foh", *,
+          eps: float = 1e-6, max_iter: int = 50, method: str = "fixed-point",
+          relaxation: float = 0.5, depth: int = 5, linearization: str = "secant",
+          **solver_kwargs) -> NonlinearResult:
+    """Iterate the linear periodic solve until the state-dependent terms settle.
+
+    Parameters
+    ----------
+    M, C, K : ndarray, shape (n, N, N) or (N, N)
+        State-independent (linear) parts, as in :func:`kedfem.solvers.periodic.solve`
+        (callables are not accepted here: the state terms are sampled arrays).
+    Q : ndarray, shape (n, N)
+        State-independent load.
+    period : float
+        Period, s.
+    state_terms : callable
+        ``state_terms(U, V) -> (dM, dC, dK, dQ)`` for a trial response ``U, V``
+        of shape ``(n, N)``; each returned item is ``None`` or an array of shape
+        ``(n, N, N)`` (``dM, dC, dK``) or ``(n, N)`` (``dQ``).
+    hold : str
+        Hold scheme of the linear solves.
+    eps : float
+        Convergence tolerance of Eq. 21 as a fraction (not percent).
+    max_iter : int
+        Maximum number of linear solves.
+    method : {"fixed-point", "relaxation", "anderson"}
+    relaxation : float
+        Weight ``w`` of the relaxation method, ``0 < w <= 1``.
+    depth : int
+        Number of previous differences Anderson acceleration keeps.
+    linearization : {"secant", "tangent"}
+        What ``state_terms`` returns. ``"secant"`` (the paper's form): parts of
+        the equation's coefficients, ``K_N(U)`` etc., sampled at the nodes and
+        interpolated by the hold like ``K`` and ``Q``. ``"tangent"``: a
+        linearisation about the trial response at each node (tangent
+        ``dC, dK`` with the matching load ``dQ = -f_nl + K_nl U + C_nl V``),
+        held over the element that starts at the node (``Kz, Cz, Qz`` of
+        :func:`kedfem.solvers.periodic.solve`) so that it cancels at the node: the
+        fixed point then solves the non-linear equations, the plain iteration
+        is Newton's method, and the error of the linearisation over an
+        element is ``O(dt^2)``.
+    **solver_kwargs
+        Passed on to :func:`kedfem.solvers.periodic.solve` (``delta``, ``memory_budget``...).
+
+    Returns
+    -------
+    NonlinearResult
+        ``converged=False`` with a :class:`~kedfem.errors.ConvergenceWarning` when
+        ``max_iter`` is reached or the iteration diverges; the last iterate and
+        its history are returned either way.
+    """
+    if method not in NONLINEAR_METHODS:
+        raise InputError(f"unknown method {method!r}; valid methods: {', '.join(NONLINEAR_METHODS)}")
+    if linearization not in ("secant", "tangent"):
+        raise InputError(f"linearization must be 'secant' or 'tangent', got {linearization!r}")
+    if not callable(state_terms):
+        raise InputError("state_terms must be callable: state_terms(U, V) -> (dM, dC, dK, dQ)")
+    if not (isinstance(max_iter, (int, np.integer)) and max_iter >= 1):
+        raise InputError(f"max_iter must be a positive integer, got {max_iter!r}")
+    if not (math.isfinite(eps) and eps > 0):
+        raise InputError(f"eps must be a positive number, got {eps!r}")
+    if not (0 < relaxation <= 1):
+        raise InputError(f"relaxation must lie in (0, 1], got {relaxation!r}")
+    if not (isinstance(depth, (int, np.integer)) and depth >= 1):
+        raise InputError(f"depth must be a positive integer, got {depth!r}")
+    for name, X in (("M", M), ("C", C), ("K", K), ("Q", Q)):
+        if callable(X):
+            raise InputError(f"{name} must be an array for the non-linear iteration, not a callable")
+    Q = np.asarray(Q, dtype=float)
+    if Q.ndim != 2:
+        raise InputError(f"Q must have shape (n, N), got {Q.shape}")
+    n, N = Q.shape
+    period = float(period)
+
+    def G(U, V, it):
+        dM, dC, dK, dQ = state_terms(U, V)
+        Mi = _add(M, dM, "dM", (n, N, N), it)
+        if hold == "zoh" or linearization == "secant":
+            Ci = _add(C, dC, "dC", (n, N, N), it)
+            Ki = _add(K, dK, "dK", (n, N, N), it)
+            Qi = _add(Q, dQ, "dQ", (n, N), it)
+            return periodic.solve(Mi, Ci, Ki, Qi, period, hold=hold, **solver_kwargs)
+        # foh / magnus2: the state-dependent stiffness and load are a linearisation
+        # about node k; held over element k they cancel at the node (Newton-like
+        # convergence) -- interpolating the load but not the stiffness would not.
+        Kz = _add(np.zeros((n, N, N)), dK, "dK", (n, N, N), it) if dK is not None else None
+        Qz = _add(np.zeros((n, N)), dQ, "dQ", (n, N), it) if dQ is not None else None
+        Cz = _add(np.zeros((n, N, N)), dC, "dC", (n, N, N), it) if dC is not None else None
+        return periodic.solve(Mi, C, K, Q, period, hold=hold, Kz=Kz, Qz=Qz, Cz=Cz, **solver_kwargs)
+
+    sol, history, converged, message = fixed_point(
+        lambda U, V, it: (lambda so: (so, so.U, so.V))(G(U, V, it)), n, N, period, eps=eps,
+        max_iter=max_iter, method=method, relaxation=relaxation, depth=depth)
+    return NonlinearResult(solution=sol, iterations=len(history),
+                           history=np.asarray(history), converged=converged,
+                           message=message, method=method)
+
+
+def fixed_point(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter: int = 50,
+                method: str = "fixed-point", relaxation: float = 0.5, depth: int = 5,
+                x0: tuple[np.ndarray, np.ndarray] | None = None):
+    """Fixed point of a periodic solve map ``(U, V) -> G(U, V)`` (see the module docstring).
+
+    Parameters
+    ----------
+    G : callable
+        ``G(U, V, it) -> (solution, U_new, V_new)``: one linear periodic solve
+        with the state-dependent terms evaluated at the trial response
+        ``U, V`` (n, N) at the instants where the scheme needs them; returns
+        its solution object and the new response at the same instants.
+    n, N : int
+        Instants and DOFs of the iterate.
+    period : float
+        [s] (scales velocities into the stacked vector of Anderson's method).
+    eps, max_iter, method, relaxation, depth
+        As in :func:`solve`.
+    x0 : (U, V), optional
+        First trial response (default zero: the first solve is the linear one).
+
+    Returns
+    -------
+    solution : object
+        Of the last solve.
+    history : list of float
+        Eq. 21 changes.
+    converged : bool
+    message : str
+    """
+    vscale = period / (2 * math.pi)  # velocity -> displacement units in the stacked vector
+
+    def pack(U, V):
+        return np.concatenate([U.ravel(), (V * vscale).ravel()])
+
+    def unpack(x):
+        return x[:n * N].reshape(n, N), x[n * N:].reshape(n, N) / vscale
+
+    x = np.zeros(2 * n * N) if x0 is None else pack(np.asarray(x0[0], float), np.asarray(x0[1], float))
+    history: list[float] = []
+    dG: list[np.ndarray] = []
+    dF: list[np.ndarray] = []
+    f_prev = g_prev = None
+    first_norm = 0.0
+    sol = None
+    converged = False
+    message = ""
+    for it in range(1, max_iter + 1):
+        U, V = unpack(x)
+        try:
+            sol, Un, Vn = G(U, V, it)
+        except UnboundedResponseError as exc:
+            if sol is None:   # the first solve: the response itself is unbounded
+                raise
+            history.append(math.inf)
+            message = (f"diverging: the linear solve at iteration {it} is unbounded ({exc}); the last "
+                       f"bounded iterate is kept (after {it - 1} linear solves)")
+            break
+        g = pack(Un, Vn)
+        f = g - x
+        dU = float(np.linalg.norm(Un - U))
+        nU = float(np.linalg.norm(Un))
+        change = 0.0 if dU == 0.0 else (dU / nU if nU > 0 else math.inf)
+        history.append(change)
+        log.debug("nonlinear (%s): iteration %d change %.3e", method, it, change)
+        if change <= eps:
+            converged = True
+            message = f"converged after {it} linear solves (change {change:.2e} <= eps {eps:.1e})"
+            break
+        if it == 1:
+            first_norm = float(np.linalg.norm(g))
+        growth = float(np.linalg.norm(g)) / max(first_norm, np.finfo(float).tiny)
+        if (not np.isfinite(change) or not np.all(np.isfinite(g))
+                or change > DIVERGENCE_FACTOR * max(min(history), eps)
+                or growth > GROWTH_LIMIT):
+            message = (f"diverging: change {change:.2e}, response {growth:.2e} times the first "
+                       f"linear solve, after {it} linear solves (smallest change "
+                       f"{min(history):.2e})")
+            break
+        if method == "fixed-point":
+            x_new = g
+        elif method == "relaxation":
+            x_new = x + relaxation * f
+        else:
+            if f_prev is not None:
+                dG.append(g - g_prev)
+                dF.append(f - f_prev)
+                if len(dF) > depth:
+                    dG.pop(0)
+                    dF.pop(0)
+            x_new = g
+            if dF:
+                Fm = np.stack(dF, axis=1)
+                gamma, *_ = np.linalg.lstsq(Fm, f, rcond=1e-10)
+                x_new = g - np.stack(dG, axis=1) @ gamma
+            f_prev, g_prev = f, g
+        x = x_new
+    else:
+        message = (f"not converged after {max_iter} linear solves (last change "
+                   f"{history[-1]:.2e} > eps {eps:.1e})")
+    if not converged:
+        warnings.warn(f"non-linear iteration ({method}): {message}", ConvergenceWarning, stacklevel=3)
+    log.info("non-linear iteration (%s): %s", method, message)
+    return sol, history, converged, message
+
+
+def fixed_point_or_anderson(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter: int = 50,
+                            method: str = "fixed-point", x0=None):
+    """:func:`fixed_point`, and when the plain iteration fails, Anderson acceleration from the start.
+
+    The plain iteration diverges where a resonance or buckling makes the state
+    terms amplify (an offset slider-crank with two flexible links, Rayleigh
+    beta = 1e-5 s); Anderson converges there. Other methods run as asked.
+
+    Returns
+    -------
+    solution, history, converged, method
+        ``history`` holds both attempts' changes; ``method`` is the one whose
+        solution is returned. The abandoned attempt's warnings are dropped.
+    """
+    import warnings as _w
+    if method != "fixed-point":
+        sol, hist, conv, _msg = fixed_point(G, n, N, period, eps=eps, max_iter=max_iter, method=method, x0=x0)
+        return sol, tuple(hist), conv, method
+    with _w.catch_warnings(record=True) as first:
+        _w.simplefilter("always")
+        sol, hist, conv, _msg = fixed_point(G, n, N, period, eps=eps, max_iter=max_iter, x0=x0)
+    if conv:
+        _reissue(first)
+        return sol, tuple(hist), conv, method
+    with _w.catch_warnings(record=True) as second:
+        _w.simplefilter("always")
+        sol2, hist2, conv2, _msg = fixed_point(G, n, N, period, eps=eps, max_iter=max_iter, method="anderson")
+    log.info("the fixed-point iteration did not converge; Anderson acceleration %s after %d solves",
+             "converged" if conv2 else "did not converge either", len(hist2))
+    if conv2:
+        _reissue(second)
+        return sol2, tuple(hist) + tuple(hist2), True, "anderson"
+    _reissue(first)
+    return sol, tuple(hist) + tuple(hist2), False, method
+
+
+def _reissue(caught) -> None:
+    import warnings as _w
+    for w in caught:
+        _w.warn_explicit(w.message, w.category, w.filename, w.lineno)
