@@ -22,7 +22,8 @@ What is compared
    (``kf.solve``, Radau IIA collocation, the fewest elements meeting the target,
    one solve; and the tolerance-driven solve ``rtol = target`` with its three
    levels and error estimate, as a user runs it) against direct time
-   integration run cycle by cycle from rest until periodic:
+   integration run cycle by cycle from rest until periodic (both by
+   :func:`kedfem.lab.transient.integrate_sampled`, the shared reference integrators):
 
    * Newmark, average acceleration (``beta = 1/4``, ``gamma = 1/2``), step
      ``T / n``, with ``M, C, K, Q`` assembled by kedfem at the step times; the
@@ -75,6 +76,7 @@ import argparse
 import csv
 import dataclasses
 import datetime
+import functools
 import math
 import os
 import platform
@@ -86,14 +88,13 @@ import warnings
 import numpy as np
 import scipy
 import scipy.linalg as sla
-from scipy.integrate import solve_ivp
-from scipy.interpolate import CubicSpline
 from threadpoolctl import threadpool_info, threadpool_limits
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 sys.path.insert(0, ROOT)
 import kedfem as kf
 from kedfem.lab import flops
+from kedfem.lab.transient import integrate_sampled
 from kedfem.solvers import periodic
 from kedfem.solvers.expm import second_order_transition
 from kedfem.analysis.pipeline import assemble_scene
@@ -196,13 +197,13 @@ class Deflection:
 
     def __init__(self, result, link, xi, relative_to):
         n, N = result.U.shape
-        base = dataclasses.replace(result, U=np.zeros((n, N)), V=np.zeros((n, N)), _cache={})
+        base = dataclasses.replace(result, U=np.zeros((n, N)), V=np.zeros((n, N)))
         self.w0 = base.deflection(link, xi, relative_to=relative_to)
         W = np.empty((n, N))
         for i in range(N):
             U = np.zeros((n, N))
             U[:, i] = 1.0
-            r = dataclasses.replace(result, U=U, V=U, _cache={})
+            r = dataclasses.replace(result, U=U, V=U)
             W[:, i] = r.deflection(link, xi, relative_to=relative_to) - self.w0
         self.W = W
         self.n = n
@@ -255,79 +256,18 @@ class SliderCrank:
     def error_of(self, res):
         return self.error(res.resample(self.tk).U)
 
-    def changed(self, w, prev, tol):
-        return prev is None or float(np.abs(w - prev).max()) > tol * self.peak
 
+def direct_periodic(terms, T, study: SliderCrank, method, tol, **kw):
+    """Direct integration from rest (:func:`kedfem.lab.transient.integrate_sampled`), cycle by cycle.
 
-def newmark_periodic(terms, T, study: SliderCrank, tol, max_cycles=500):
-    """Average-acceleration Newmark from rest, cycle by cycle until periodic. (U, cycles)."""
-    M, C, K, Q = terms.M, terms.C, terms.K, terms.Q
-    n, N = Q.shape
-    h = T / n
-    Einv = np.linalg.inv(M + (0.5 * h) * C + (0.25 * h * h) * K)
-    RP = np.concatenate([Einv @ K, Einv @ C], axis=2)  # (n, N, 2N)
-    q = (Einv @ Q[..., None])[..., 0]
-    RP = np.concatenate([RP[1:], RP[:1]])  # step k -> k+1 uses the matrices at node k+1
-    q = np.concatenate([q[1:], q[:1]])
-    u, v = np.zeros(N), np.zeros(N)
-    a = np.linalg.solve(M[0], Q[0])
-    hh = 0.25 * h * h
-    prev = None
-    U = np.empty((n, N))
-    y = np.empty(2 * N)
-    for c in range(1, max_cycles + 1):
-        for k in range(n):
-            U[k] = u
-            y[:N] = u + h * v + hh * a   # predictors
-            y[N:] = v + (0.5 * h) * a
-            a = q[k] - RP[k] @ y
-            u = y[:N] + hh * a
-            v = y[N:] + (0.5 * h) * a
-        w = study.defl(U)
-        if not study.changed(w, prev, tol):
-            return U.copy(), c
-        prev = w
-    raise RuntimeError("Newmark: not periodic")
-
-
-def radau_periodic(terms, T, study: SliderCrank, rtol, tol, max_cycles=500):
-    """solve_ivp Radau (exact Jacobian) on splines of the sampled terms, from rest. (U, cycles, nfev)."""
-    n, N = terms.Q.shape
-    Mi = np.linalg.inv(terms.M)
-    tk = np.arange(n + 1) * (T / n)
-
-    def spline(X):
-        return CubicSpline(tk, np.concatenate([X, X[:1]]), bc_type="periodic")
-
-    sS, sD, sf = spline(Mi @ terms.K), spline(Mi @ terms.C), spline((Mi @ terms.Q[..., None])[..., 0])
-    J = np.zeros((2 * N, 2 * N))
-    J[:N, N:] = np.eye(N)
-    nfev = [0]
-
-    def rhs(t, y):
-        nfev[0] += 1
-        return np.concatenate([y[N:], sf(t) - sS(t) @ y[:N] - sD(t) @ y[N:]])
-
-    def jac(t, y):
-        J[N:, :N] = -sS(t)
-        J[N:, N:] = -sD(t)
-        return J.copy()
-
-    t_eval = np.arange(NE + 1) * (T / NE)
-    y = np.zeros(2 * N)
-    prev = None
-    for c in range(1, max_cycles + 1):
-        sol = solve_ivp(rhs, (0.0, T), y, method="Radau", jac=jac, t_eval=t_eval, rtol=rtol,
-                        atol=1e-3 * rtol)
-        if not sol.success:
-            raise RuntimeError(sol.message)
-        y = sol.y[:, -1]
-        U = sol.y[:N, :-1].T
-        w = study.defl(U)
-        if not study.changed(w, prev, tol):
-            return U, c, nfev[0]
-        prev = w
-    raise RuntimeError("Radau: not periodic")
+    Stops at the first cycle whose deflection history (at the NE nodes) differs from the previous
+    cycle's by at most ``tol`` times the reference peak; ``kw`` goes to ``integrate_sampled``.
+    """
+    r = integrate_sampled(terms.M, terms.C, terms.K, terms.Q, T, method, tol=tol, n_out=NE,
+                          monitor=study.defl, scale=study.peak, **kw)
+    if not r.converged:
+        raise RuntimeError(f"{method}: {r.message}")
+    return r
 
 
 def study_slider_crank(targets, zeta, n_ref, repeats):
@@ -362,14 +302,13 @@ def study_slider_crank(targets, zeta, n_ref, repeats):
         # Newmark: fewest steps meeting the target (the cycling included)
         nm = None
         for n in ladder:
-            U, cyc = newmark_periodic(st.terms(n), T, st, tol)
-            if st.error(U) <= tol:
+            if st.error(direct_periodic(st.terms(n), T, st, "newmark", tol).U) <= tol:
                 nm = n
                 break
         if nm is None:
             raise RuntimeError(f"Newmark does not reach {tol:.0e} within {ladder[-1]} steps a cycle")
-        tn_solver, (U, cyc_n), bn = timed(lambda: newmark_periodic(st.terms(nm), T, st, tol), repeats)
-        err_n = st.error(U)
+        tn_solver, r, bn = timed(lambda: direct_periodic(st.terms(nm), T, st, "newmark", tol), repeats)
+        err_n, cyc_n = st.error(r.U), r.cycles
         tn_e2e = tn_solver + asm_time(nm)
         # Radau: loosest rtol on the coarsest spline grid meeting the target
         rd = None
@@ -377,17 +316,17 @@ def study_slider_crank(targets, zeta, n_ref, repeats):
             for rtol in (1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8):
                 if rtol > 10 * tol:
                     continue
-                U, cyc, _ = radau_periodic(st.terms(ns), T, st, rtol, tol)
-                if st.error(U) <= tol:
+                r = direct_periodic(st.terms(ns), T, st, "radau", tol, rtol=rtol, atol=1e-3 * rtol)
+                if st.error(r.U) <= tol:
                     rd = (ns, rtol)
                     break
             if rd:
                 break
         if rd is None:
             raise RuntimeError(f"solve_ivp Radau does not reach {tol:.0e}")
-        tr_solver, (U, cyc_r, nfev), br = timed(
-            lambda: radau_periodic(st.terms(rd[0]), T, st, rd[1], tol), repeats)
-        err_r = st.error(U)
+        tr_solver, r, br = timed(functools.partial(direct_periodic, st.terms(rd[0]), T, st, "radau", tol,
+                                                   rtol=rd[1], atol=1e-3 * rd[1]), repeats)
+        err_r, cyc_r, nfev = st.error(r.U), r.cycles, r.nfev
         tr_e2e = tr_solver + asm_time(rd[0])
         say(hdr)
         say("-" * len(hdr))

@@ -56,7 +56,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
-from kedfem import periodic  # noqa: E402
+from kedfem.solvers import periodic  # noqa: E402
 
 T = 1.0
 W_MAX = 30.0

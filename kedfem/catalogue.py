@@ -15,6 +15,17 @@ or a function used as ``build``). Names come from, in this order:
 The core never imports the catalogue package by name: kedfem's own entries are
 loaded from their files beside the ``kedfem`` package, so a user's folder that
 happens to be called ``mechanisms/`` cannot shadow them.
+
+What kedfem knows of a mechanism comes from the mechanism itself, through
+:func:`info` (a :class:`MechanismInfo`): its parameters (``DEFAULTS``, else
+the keyword defaults of ``build``), its preset scene (``PRESET``: a
+:class:`Preset` or a mapping of its fields) and the parameters that may be
+negative (``SIGNED_PARAMETERS``; a parameter whose default is negative is
+signed too). ``PRESET`` and ``SIGNED_PARAMETERS`` are read from the module, or
+from the builder function as attributes (``hoekens.PRESET = {"effects":
+["inertia", "coupling", "axial_stiffening"]}``); a mechanism without them gets
+``Preset()`` and only its negative defaults signed. Scene files, the command
+line and sweeps ask this registry and name no mechanism.
 """
 
 from __future__ import annotations
@@ -22,21 +33,151 @@ from __future__ import annotations
 import importlib
 import importlib.util
 import inspect
+import logging
 import os
 import sys
 import types
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, fields
 from importlib.metadata import entry_points
 from pathlib import Path
+from typing import Any
 
 from .errors import InputError, did_you_mean
+from .fe.effects import ModalDamping
 
-__all__ = ["GROUP", "available", "get", "build", "register", "is_reference"]
+__all__ = ["GROUP", "SOLVER_KEYS", "Preset", "MechanismInfo", "available", "get", "info", "build", "register",
+           "is_reference", "parameters"]
+
+log = logging.getLogger(__name__)
 
 #: The entry-point group mechanisms are registered in.
 GROUP = "kedfem.mechanisms"
+#: Solver arguments of a :class:`~kedfem.analysis.scene.Scene` a preset may set.
+SOLVER_KEYS = ("eps", "max_iter", "nonlinear_method", "delta")
 
 _REGISTERED: dict[str, object] = {}
 _LOADED: dict[str, object] = {}
+_INFO: dict[str, MechanismInfo] = {}
+
+
+@dataclass(frozen=True)
+class Preset:
+    """The scene a mechanism's scenes start from: a scene file's keys win over it.
+
+    Parameters
+    ----------
+    steps : int, optional
+        Fixed number of time elements (None: as many as the tolerance needs).
+    effects : tuple of str
+        Effects to assemble (``kedfem list``).
+    damping : Rayleigh or ModalDamping or None
+        Damping model (None: undamped).
+    hold : str, optional
+        One of the paper's exponential holds (None: the default method).
+    solver : tuple of (str, value) pairs
+        :class:`~kedfem.analysis.scene.Scene` solver arguments (:data:`SOLVER_KEYS`);
+        a mapping is accepted.
+    name : str, optional
+        Scene name, a template formatted with the mechanism's parameters
+        (``"mould oscillator, group {group}"``; None: the mechanism's own name).
+    """
+
+    steps: int | None = None
+    effects: tuple[str, ...] = ("inertia", "coupling")
+    damping: Any = field(default_factory=lambda: ModalDamping(0.02))
+    hold: str | None = None
+    solver: tuple[tuple[str, Any], ...] = ()
+    name: str | None = None
+
+    def __post_init__(self):
+        effects = (self.effects,) if isinstance(self.effects, str) else self.effects
+        if not isinstance(effects, (tuple, list)) or not all(isinstance(e, str) for e in effects):
+            raise InputError(f"Preset: effects must be effect names, got {self.effects!r}")
+        object.__setattr__(self, "effects", tuple(effects))
+        try:
+            solver = tuple(dict(self.solver).items())
+        except (TypeError, ValueError):
+            raise InputError(f"Preset: solver must be a mapping of {', '.join(SOLVER_KEYS)}, "
+                             f"got {self.solver!r}") from None
+        for k, _ in solver:
+            if k not in SOLVER_KEYS:
+                raise InputError(f"Preset: unknown solver key {k!r}{did_you_mean(k, SOLVER_KEYS)}; "
+                                 f"allowed: {', '.join(SOLVER_KEYS)}")
+        object.__setattr__(self, "solver", solver)
+        if self.name is not None and not isinstance(self.name, str):
+            raise InputError(f"Preset: name must be a string template, got {self.name!r}")
+
+    def scene_arguments(self) -> dict[str, Any]:
+        """Keyword arguments of :class:`~kedfem.analysis.scene.Scene` (all but the mechanism and name)."""
+        return dict(steps=self.steps, effects=self.effects, damping=self.damping, hold=self.hold,
+                    **dict(self.solver))
+
+
+@dataclass(frozen=True, eq=False)
+class MechanismInfo:
+    """A catalogue entry: a mechanism's builder and what scenes need to know of it.
+
+    Attributes
+    ----------
+    name : str
+        Catalogue name (or ``"package.module:function"`` reference).
+    source : object
+        The module (or a module-like wrapper of a builder function).
+    build : callable
+        ``build(**params) -> kedfem.Mechanism``.
+    parameters : dict
+        Parameter name -> default (see :func:`parameters`).
+    signed : frozenset of str
+        Parameters that may be negative; every other numeric parameter must be >= 0.
+    preset : Preset
+        The mechanism's preset scene.
+    """
+
+    name: str
+    source: object
+    build: Callable
+    parameters: dict = field(default_factory=dict)
+    signed: frozenset = frozenset()
+    preset: Preset = Preset()
+
+    @property
+    def summary(self) -> str:
+        """First line of the builder's docstring."""
+        doc = (inspect.getdoc(self.build) or "").splitlines()
+        return doc[0] if doc else ""
+
+    def scene_name(self, params: Mapping[str, Any], mech) -> str:
+        """Name of the scene of ``mech`` built with ``params`` (the preset's template, else the mechanism's)."""
+        if self.preset.name is None:
+            return mech.name
+        try:
+            return self.preset.name.format_map({**self.parameters, **params})
+        except (KeyError, IndexError, ValueError, TypeError) as e:
+            log.warning("mechanism %s: preset name %r does not format with %r (%s); using %r", self.name,
+                        self.preset.name, dict(params), e, mech.name)
+            return mech.name
+
+    def scene(self, params: Mapping[str, Any] | None = None, **scene_args):
+        """The preset scene of the mechanism built with ``params``.
+
+        Parameters
+        ----------
+        params : mapping, optional
+            Mechanism parameters (SI units).
+        **scene_args
+            :class:`~kedfem.analysis.scene.Scene` arguments that replace the preset's.
+
+        Returns
+        -------
+        Scene
+        """
+        from .analysis.scene import Scene
+        params = dict(params or {})
+        mech = self.build(**params)
+        kw = dict(self.preset.scene_arguments(), name=self.scene_name(params, mech))
+        kw.update(scene_args)
+        return Scene(mech, **kw)
 
 
 def _key(name: str) -> str:
@@ -67,13 +208,16 @@ def register(name: str, obj) -> None:
     """Make ``obj`` (a module with ``build``, or a builder function) known as ``name`` in this process.
 
     Sweep workers are other processes: for sweeps, register by entry point or
-    name the builder as ``"package.module:function"``.
+    name the builder as ``"package.module:function"``. ``PRESET`` and
+    ``SIGNED_PARAMETERS`` of ``obj`` (or of its ``build``) are read as for
+    any mechanism (see the module docstring).
     """
     key = _key(name)
     if not key.isidentifier():
         raise InputError(f"catalogue: a mechanism name must be an identifier, got {name!r}")
     _REGISTERED[key] = _as_mechanism(obj, key)
     _LOADED.pop(key, None)
+    _INFO.pop(key, None)
 
 
 def _as_mechanism(obj, name: str):
@@ -140,6 +284,82 @@ def _load_reference(name: str):
     if fn is None:
         raise InputError(f"mechanism {name!r}: module {module!r} has no {attr!r}")
     return _as_mechanism(fn, name)
+
+
+def parameters(source) -> dict[str, Any]:
+    """Parameters (name -> default) a mechanism's ``build`` accepts.
+
+    ``DEFAULTS`` when ``source`` (a module with ``build``) has it, else the
+    keyword defaults of ``build``.
+    """
+    d = getattr(source, "DEFAULTS", None)
+    if isinstance(d, Mapping):
+        return dict(d)
+    out = {}
+    for p in inspect.signature(source.build).parameters.values():
+        if p.default is not inspect.Parameter.empty:
+            out[p.name] = p.default
+    return out
+
+
+def _declared(source, attr: str):
+    """``attr`` of a mechanism module, else of its builder function (None: not declared)."""
+    v = getattr(source, attr, None)
+    return getattr(source.build, attr, None) if v is None else v
+
+
+def _negative(v) -> bool:
+    if isinstance(v, (tuple, list)):
+        return any(_negative(x) for x in v)
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and v < 0
+
+
+def _info(name: str, source) -> MechanismInfo:
+    params = parameters(source)
+    pre = _declared(source, "PRESET")
+    if pre is None:
+        pre = Preset()
+    elif isinstance(pre, Mapping):
+        known = [f.name for f in fields(Preset)]
+        for k in pre:
+            if k not in known:
+                raise InputError(f"mechanism {name!r}: PRESET has an unknown key {k!r}{did_you_mean(k, known)}; "
+                                 f"allowed: {', '.join(known)}")
+        pre = Preset(**pre)
+    elif not isinstance(pre, Preset):
+        raise InputError(f"mechanism {name!r}: PRESET must be a kedfem.catalogue.Preset or a mapping of its "
+                         f"fields, got {pre!r}")
+    signed = _declared(source, "SIGNED_PARAMETERS") or ()
+    signed = (signed,) if isinstance(signed, str) else tuple(signed)
+    for k in signed:
+        if k not in params:
+            raise InputError(f"mechanism {name!r}: SIGNED_PARAMETERS names {k!r}, not one of its parameters"
+                             f"{did_you_mean(str(k), params)}; parameters: {', '.join(params)}")
+    if pre.name is not None:
+        try:
+            pre.name.format_map(params)
+        except (KeyError, IndexError, ValueError) as e:
+            raise InputError(f"mechanism {name!r}: the preset's name {pre.name!r} is not a template of its "
+                             f"parameters ({type(e).__name__}: {e})") from None
+    signed = frozenset(signed) | {k for k, v in params.items() if _negative(v)}
+    return MechanismInfo(name, source, source.build, params, signed, pre)
+
+
+def info(name: str) -> MechanismInfo:
+    """The catalogue entry of mechanism ``name`` (see :func:`get` for the names).
+
+    Raises
+    ------
+    InputError
+        For an unknown name, one that cannot be loaded, or a mechanism whose
+        ``PRESET`` or ``SIGNED_PARAMETERS`` is malformed.
+    """
+    source = get(name)
+    key = _key(name)
+    entry = _INFO.get(key)
+    if entry is None or entry.source is not source:
+        entry = _INFO[key] = _info(key, source)
+    return entry
 
 
 def get(name: str):

@@ -118,47 +118,31 @@ class _Loaded:
 
 
 def _load(target: str | None, overrides: dict) -> _Loaded:
-    """Scene from a file, a mechanism name or the built-in default, with command-line overrides."""
+    """Scene from a file, a mechanism name or the built-in default, with command-line overrides.
+
+    The default scene is the preset scene of :data:`kedfem.analysis.defaults.DEFAULT_MECHANISM`,
+    loaded like any mechanism name.
+    """
     from . import catalogue
+    from .analysis.defaults import DEFAULT_MECHANISM
     from .io import scenefile as sf
-    from .analysis.defaults import default_scene
-    from .io.scenefile import RPM, Outputs
-    if target is None:
-        scene = default_scene()
-        kw = {}
-        if "steps" in overrides:
-            kw["steps"] = overrides["steps"]
-        if "speed_rpm" in overrides:
-            kw["speed"] = overrides["speed_rpm"] * RPM
-        if "accuracy" in overrides:
-            scene = scene.with_accuracy(overrides["accuracy"])
-        if "hold" in overrides:
-            kw["hold"] = overrides["hold"]
-        if "method" in overrides:
-            kw["method"] = overrides["method"]
-            kw.setdefault("hold", None)
-        if "rtol" in overrides:
-            kw["rtol"] = overrides["rtol"]
-        if "effects" in overrides:
-            from .fe.effects import EFFECTS
-            kw["effects"] = tuple(EFFECTS) if overrides["effects"] == "all" else tuple(overrides["effects"])
-        if kw:
-            scene = dataclasses.replace(scene, **kw)
-        data = sf.with_overrides({"mechanism": {"name": "mould_oscillator"}, "name": scene.name}, overrides)
-        return _Loaded(scene, Outputs(), data, {}, "built-in default scene")
-    p = Path(target)
-    if p.suffix.lower() == ".toml" or p.is_file():
-        spec = sf.load_spec(p, overrides)
-        return _Loaded(spec.scene, spec.outputs, sf.with_overrides(spec.data, overrides), spec.sweep, str(p))
-    key = target if catalogue.is_reference(target) else target.replace("-", "_")
-    if not catalogue.is_reference(key) and key not in catalogue.available():
+    if target is not None and (Path(target).suffix.lower() == ".toml" or Path(target).is_file()):
+        spec = sf.load_spec(Path(target), overrides)
+        return _Loaded(spec.scene, spec.outputs, sf.with_overrides(spec.data, overrides), spec.sweep,
+                       str(Path(target)))
+    key = DEFAULT_MECHANISM if target is None else target
+    key = key if catalogue.is_reference(key) else key.replace("-", "_")
+    if target is not None and not catalogue.is_reference(key) and key not in catalogue.available():
         avail = catalogue.available()
         raise InputError(f"no scene file or mechanism named {target!r}{sf._suggest(key, avail)}; "
                          f"mechanisms: {', '.join(avail)} (kedfem list), or 'package.module:function' for a "
                          f"builder of your own")
     data = sf.with_overrides({"mechanism": {"name": key}}, overrides)
-    spec = sf.parse_scene(data, source=f"mechanism {key}", overridden=overrides)
-    return _Loaded(spec.scene, spec.outputs, data, {}, f"mechanism {key} (preset scene)")
+    source = "built-in default scene" if target is None else f"mechanism {key}"
+    spec = sf.parse_scene(data, source=source, overridden=overrides)
+    if target is None:
+        return _Loaded(spec.scene, spec.outputs, {"mechanism": None, "name": spec.scene.name, **data}, {}, source)
+    return _Loaded(spec.scene, spec.outputs, data, {}, f"{source} (preset scene)")
 
 
 @contextlib.contextmanager
@@ -333,7 +317,7 @@ def _check_dofs(scene, dofs) -> None:
     """A bad plot label is an input error before any work, not after the solve."""
     if not dofs:
         return
-    from .fe.assembly import FEModel
+    from .fe.model import FEModel
     model = FEModel(scene.mech, reduction=scene.reduction)
     for d in dofs:
         model.dof_index(d, owner="plot: ")
@@ -411,9 +395,9 @@ def _cmd_run(args) -> int:
 # -------------------------------------------------------------- validate
 def _cmd_validate(args) -> int:
     from . import catalogue
-    from .fe.effects import Rayleigh
     from .analysis.scene import Scene
     from .analysis.validation import table3, validate
+    from .fe.effects import Rayleigh
     ok = True
     t0 = time.perf_counter()
     if not args.skip_table3:
@@ -594,26 +578,36 @@ def _param_docs(module) -> dict[str, str]:
     return out
 
 
+def _preset_line(pre) -> str:
+    """A mechanism's preset scene in one line (``kedfem list``)."""
+    from .io.scenefile import describe_damping
+    parts = ["tolerance-driven" if pre.steps is None else f"steps {pre.steps}"]
+    if pre.hold is not None:
+        parts.append(f"hold {pre.hold}")
+    parts.append(f"effects {', '.join(pre.effects)}")
+    parts.append(f"damping {describe_damping(pre.damping)}")
+    if pre.solver:
+        parts.append("solver " + ", ".join(f"{k} = {v!r}" for k, v in pre.solver))
+    return "; ".join(parts)
+
+
 def _cmd_list(args) -> int:
     from . import catalogue
-    from .fe.effects import EFFECTS
     from .analysis.scene import HOLDS, NONLINEAR_METHODS
-    from .io.scenefile import describe_damping, mechanism_parameters, preset
+    from .fe.effects import EFFECTS
     print("mechanisms (kedfem run NAME; parameters go in the [mechanism] table of a scene file, SI units;")
-    print("            the speed is the top-level speed_rpm):")
+    print("            the speed is the top-level speed_rpm; (+-): may be negative):")
     for name in catalogue.available():
-        mod = catalogue.get(name)
-        doc = (inspect.getdoc(mod.build) or "").splitlines()
-        pre = preset(name)
-        print(f"\n  {name}: {doc[0] if doc else ''}")
-        steps = "tolerance-driven" if pre.steps is None else f"steps {pre.steps}"
-        print(f"    preset: {steps}; effects {', '.join(pre.effects)}; damping {describe_damping(pre.damping)}")
-        docs = _param_docs(mod)
-        for k, v in mechanism_parameters(mod).items():
+        entry = catalogue.info(name)
+        print(f"\n  {name}: {entry.summary}")
+        print(f"    preset: {_preset_line(entry.preset)}")
+        docs = _param_docs(entry.source)
+        for k, v in entry.parameters.items():
             d = docs.get(k, "")
             if k == "speed":
                 d = (d.rstrip(".") + "; " if d else "") + "set it with speed_rpm [rev/min]"
-            print(f"    {k:<24s} = {v!r:<22} {d}")
+            sign = " (+-)" if k in entry.signed else ""
+            print(f"    {k + sign:<24s} = {v!r:<22} {d}")
     print("\neffects (the scene's effects = [...]; nothing else is assembled):")
     for e in EFFECTS.values():
         print(f"  {e.name:<24s} {e.adds}")

@@ -1,5 +1,10 @@
 """Mechanism definitions: each module has ``build(**params) -> kedfem.Mechanism``.
 
+Each also declares what kedfem's scenes need to know of it (read through
+:func:`kedfem.catalogue.info`): ``DEFAULTS`` (its parameters), ``PRESET`` (its
+preset scene, a :class:`kedfem.catalogue.Preset`) and ``SIGNED_PARAMETERS``
+(the parameters that may be negative).
+
 ``available()`` lists them; ``get(name)`` returns the module.
 """
 

@@ -11,9 +11,12 @@ from __future__ import annotations
 import math
 
 import kedfem as kf
+from kedfem.catalogue import Preset
 
 DEFAULTS = dict(speed=2 * math.pi * 12.0, eccentricity=0.01, length=0.8, width=0.04, height=0.01,
                 spring=2.0e4, elements=8, E=2.0e11, rho=7850.0, tip_mass=0.5)
+#: Preset scene: a linear, time-invariant structure loaded through its spring
+PRESET = Preset(effects=("inertia", "coupling", "springs"), damping=kf.ModalDamping(0.02))
 
 
 def build(speed: float = 2 * math.pi * 12.0, eccentricity: float = 0.01, length: float = 0.8,

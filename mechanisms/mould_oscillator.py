@@ -66,6 +66,7 @@ from __future__ import annotations
 import math
 
 import kedfem as kf
+from kedfem.catalogue import Preset
 
 #: Paper Table 2: (inner, outer) crank lengths [m] and outer-arc amplitude [m]
 GROUPS = {
@@ -106,6 +107,19 @@ DEFAULTS = dict(
     friction_smoothing=2.0e-3,      # tanh regularisation speed of the friction sign [m/s]
     E=2.06e11, rho=7850.0,          # steel
 )
+#: The preset scene, which is also kedfem's built-in default scene
+#: (:func:`kedfem.analysis.defaults.default_scene`, ``kedfem run``): every effect
+#: the model declares, 2 % modal damping, the paper's fixed-point iteration
+#: (Newton-like with the tangent terms) to ``eps = 1e-6``; the number of time
+#: elements follows from the tolerance.
+PRESET = Preset(
+    effects=("inertia", "coupling", "axial_stiffening", "geometric_nonlinearity", "gravity", "springs", "loads"),
+    damping=kf.ModalDamping(0.02),
+    solver=dict(eps=1e-6, nonlinear_method="fixed-point"),
+    name="mould oscillator, group {group}",
+)
+#: heights and the strand's withdrawal speed may be negative (every other parameter is >= 0)
+SIGNED_PARAMETERS = ("leaf_height", "casting_speed")
 
 
 def build(group: int = 1, **overrides) -> kf.Mechanism:

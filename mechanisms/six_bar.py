@@ -15,11 +15,18 @@ import math
 import numpy as np
 
 import kedfem as kf
+from kedfem.catalogue import Preset
 
 DEFAULTS = dict(speed=2 * math.pi * 5, elements=4, crank=0.10, coupler=0.30, ground=0.35,
                 arm_b=0.20, arm_c=0.18, link=0.30, rocker=0.22, o6=(0.62, 0.05),
                 E=2.0e11, rho=7850.0, width=0.02, height=0.006, bellcrank_mass=1.5,
                 bellcrank_inertia=6.0e-3, crank_angle=0.0)
+#: Preset scene: like the four-bar's, with ``geometric_nonlinearity`` (pinned flexible
+#: links; without it the peaks are 0.1 % off the geometrically exact model).
+PRESET = Preset(effects=("inertia", "coupling", "axial_stiffening", "geometric_nonlinearity"),
+                damping=kf.ModalDamping(0.02))
+#: the crank's starting angle and the rocker pivot's coordinates may be negative
+SIGNED_PARAMETERS = ("crank_angle", "o6")
 
 
 def _circle_intersection(p, rp, q, rq, upper=True):

@@ -12,7 +12,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-
 import kedfem
 from kedfem import cli
 from kedfem.io.scenefile import MAX_STEPS
@@ -158,6 +157,28 @@ def test_help_version_and_list(capsys):
     for e, eff in kedfem.EFFECTS.items():
         assert e in out and eff.adds in out
     assert "rod_diameter" in out and "[m]" in out and "speed_rpm" in out
+    # presets and signed parameters as the mechanisms declare them
+    assert "    crank_angle (+-) " in out and "    crank (+-) " not in out
+    assert "solver eps = 1e-06, nonlinear_method = 'fixed-point'" in out
+
+
+@pytest.mark.parametrize("overrides", [{}, {"accuracy": "fast"}, {"method": "foh", "steps": 40},
+                                       {"effects": "all", "speed_rpm": 120.0, "rtol": 1e-2}])
+def test_the_default_scene_is_the_default_mechanisms_preset(overrides):
+    """`kedfem run` without a scene loads the default mechanism's preset like a mechanism name."""
+    import dataclasses
+
+    from kedfem.analysis.defaults import DEFAULT_MECHANISM
+
+    def fields(sc):  # the mechanism holds closures (loads): compared by its summary
+        return {f.name: getattr(sc, f.name) for f in dataclasses.fields(sc) if f.name not in ("mechanism", "_mech")}
+
+    ld, named = cli._load(None, dict(overrides)), cli._load(DEFAULT_MECHANISM, dict(overrides))
+    assert ld.source == "built-in default scene" and fields(ld.scene) == fields(named.scene)
+    assert ld.scene.mech.summary() == named.scene.mech.summary()
+    assert ld.data == dict(named.data, name="mould oscillator, group 1") and ld.sweep == {}
+    if not overrides:
+        assert fields(ld.scene) == fields(kedfem.default_scene())
 
 
 def test_validate(capsys, monkeypatch):

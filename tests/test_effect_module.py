@@ -1,4 +1,6 @@
-"""An effect in its own module (kedfem/fe/joint_torque.py) joins the registry with one line."""
+"""An effect in its own module (kedfem/fe/effects/joint_torque.py) joins the registry with one line."""
+
+from dataclasses import dataclass
 
 import numpy as np
 import pytest
@@ -6,7 +8,7 @@ import pytest
 import kedfem as kf
 import mechanisms
 from kedfem.fe import effects
-from kedfem.fe.joint_torque import JointTorque
+from kedfem.fe.effects.joint_torque import JointTorque
 
 
 @pytest.fixture()
@@ -40,3 +42,42 @@ def test_registry_rules(registry):
     registry.register_effect(JointTorque("at_clamp", member="beam", joint="C", torque=1.0))
     with pytest.raises(kf.InputError, match="no elastic rotation at joint 'C'"):
         kf.solve(kf.Scene(mechanisms.build("exciter"), effects=("at_clamp",), steps=24))
+
+
+@dataclass(frozen=True)
+class HardeningTipSpring(JointTorque):
+    """A state-dependent plug-in: a hardening rotational spring ``k1 th + k3 th^3`` [N m] on the
+    elastic rotation at a joint, iterated by the solve (state_terms)."""
+
+    adds: str = "a hardening rotational spring to ground"
+    k1: float = 0.0
+    k3: float = 0.0
+
+    def state_dependent(self, mech) -> bool:
+        return True
+
+    def terms(self, asm, chunk):
+        return None
+
+    def state_terms(self, asm, motion, U, V, out):
+        i = self.dof(asm.model)
+        th = U[:, i]
+        out.dK[:, i, i] += self.k1 + 3.0 * self.k3 * th**2
+        out.dQ[:, i] += -(self.k1 * th + self.k3 * th**3) + (self.k1 + 3.0 * self.k3 * th**2) * th
+
+
+def test_a_state_dependent_plugin_effect_is_iterated_to_the_closed_form(registry):
+    """Tip torque tau on the cantilever against a hardening tip spring: the end moment is
+    tau - k1 th - k3 th^3 = EI th / L, a cubic whose real root numpy finds independently."""
+    registry.register_effect(JointTorque("tip_torque", member="beam", joint="T", torque=40.0))
+    registry.register_effect(HardeningTipSpring("tip_spring", member="beam", joint="T", k1=500.0, k3=4e7))
+    m = mechanisms.build("exciter", spring=0.0)
+    sc = kf.Scene(m, effects=("tip_torque", "tip_spring"), damping=kf.ModalDamping(0.02), steps=24)
+    assert sc.state_dependent
+    res = kf.solve(sc)
+    beam = m.links["beam"]
+    EI, L = beam.material.E * beam.section.I, 0.8
+    roots = np.roots([4e7, 0.0, EI / L + 500.0, -40.0])
+    th = float(roots[np.abs(roots.imag) < 1e-12].real[0])
+    assert th < 0.5 * 40.0 / (EI / L + 500.0)  # the cubic term matters: less than half the linear answer
+    np.testing.assert_allclose(res.dof("beam.theta@T"), th, rtol=1e-8)

@@ -15,7 +15,7 @@ import numpy as np
 import kedfem as kf
 import mechanisms
 from kedfem.model import elements as el
-from kedfem.fe.effects import Assembler
+from kedfem.fe.assembler import Assembler
 
 
 def dT(theta, order):

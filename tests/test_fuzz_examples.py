@@ -59,7 +59,7 @@ def test_mutated_example_scenes_load_and_solve_or_name_the_problem(tmp_path, pat
         if e.key:
             assert sf._keyfmt(e.key) in str(e)
         return
-    from kedfem.fe.assembly import FEModel
+    from kedfem.fe.model import FEModel
     try:
         n_dof = FEModel(scene.mech, reduction=scene.reduction).n_dof
     except kf.KedError as e:

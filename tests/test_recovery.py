@@ -103,7 +103,7 @@ def test_four_element_stresses_match_an_eight_element_mesh(name):
 def test_modal_damping_field_matches_the_eigenproblem_at_any_instant():
     """The interpolated C(t) of a solve against an eigenproblem per instant (kedfem/fe/modal_damping.py)."""
     from kedfem.analysis import pipeline
-    from kedfem.fe.effects import Assembler
+    from kedfem.fe.assembler import Assembler
     from kedfem.io.scenefile import preset
     p = preset("four_bar")
     sc = kf.Scene(mechanisms.build("four_bar"), effects=p.effects, damping=p.damping)
@@ -112,7 +112,7 @@ def test_modal_damping_field_matches_the_eigenproblem_at_any_instant():
     assert field.samples >= 64 and not field.constant
     t = np.random.default_rng(1).random(9) * sc.period
     asm = Assembler(run.model, run.cycle.at(t), (), damping=sc.damping)
-    exact = asm._damping(*asm.structural())
+    exact = asm.damping_matrix(*asm.structural())
     d = np.sqrt(np.abs(np.einsum("tii->ti", exact)).max(axis=0))
     assert np.max(np.abs(field.at(t) - exact) / np.outer(d, d)) < 1e-9
     # a time-invariant scene keeps its constant matrix exactly (the solvers' constant path)

@@ -10,8 +10,8 @@ from hypothesis import strategies as st
 
 import kedfem as kf
 import mechanisms
-from kedfem.io import scenefile as sf
 from kedfem.analysis.defaults import default_scene
+from kedfem.io import scenefile as sf
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = sorted((ROOT / "examples" / "scenes").glob("*.toml"))
@@ -92,6 +92,50 @@ def test_default_mould_scene_file_is_the_builtin_default():
     scene, out = sf.load_scene(ROOT / "examples" / "scenes" / "mould_oscillator.toml")
     same_scene(scene, d)
     assert out == sf.Outputs()
+
+
+def test_every_preset_scene_is_the_catalogues():
+    """A mechanism name alone is the preset scene the mechanism declares (one definition of each)."""
+    from kedfem import catalogue
+    for name in catalogue.available():
+        same_scene(sf.scene_from_dict({"mechanism": {"name": name}}), catalogue.info(name).scene())
+    mould = {"group": 3, "leaf_length": 1.0}
+    same_scene(sf.scene_from_dict({"mechanism": {"name": "mould_oscillator", **mould}, "steps": 30}),
+               default_scene(steps=30, **mould))
+
+
+def test_the_parser_names_no_mechanism():
+    """Presets and signed parameters were tables in this module; the mechanisms declare them now."""
+    import ast
+
+    from kedfem import catalogue
+    tree = ast.parse(Path(sf.__file__).read_text())
+    docs = {id(n.body[0].value) for n in ast.walk(tree)
+            if isinstance(n, (ast.Module, ast.FunctionDef, ast.ClassDef)) and ast.get_docstring(n) is not None}
+    code = [n.value for n in ast.walk(tree) if isinstance(n, ast.Constant) and isinstance(n.value, str)
+            and id(n) not in docs]
+    code += [n.id for n in ast.walk(tree) if isinstance(n, ast.Name)]
+    words = set(catalogue.available()) | {"mould", "crank_angle", "o6", "leaf_height", "casting_speed"}
+    for text in code:
+        for word in words:
+            assert word not in text.replace("-", "_").replace(" ", "_"), (word, text)
+
+
+@pytest.mark.parametrize("name,param,value,ok", [
+    ("four_bar", "crank_angle", -0.5, True),
+    ("six_bar", "o6", [0.62, -0.05], True),
+    ("mould_oscillator", "casting_speed", -0.02, True),
+    ("four_bar", "crank", -0.1, False),
+    ("exciter", "spring", -1.0, False),
+])
+def test_signed_parameters_come_from_the_mechanism(name, param, value, ok):
+    data = {"mechanism": {"name": name, param: value}, "steps": 12}
+    if ok:
+        assert sf.parse_scene(data).scene.mech
+    else:
+        with pytest.raises(sf.SceneFileError, match=">= 0") as ei:
+            sf.parse_scene(data)
+        assert ei.value.key == f"mechanism.{param}"
 
 
 @pytest.mark.parametrize("path", SCENES, ids=lambda p: p.stem)

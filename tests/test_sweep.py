@@ -10,6 +10,7 @@ import pytest
 import kedfem as kf
 from kedfem.io import scenefile as sf
 from kedfem.io import sweep
+from kedfem.solvers import threads
 
 BASE = {"mechanism": {"name": "slider_crank", "elements": 3}, "steps": 30,
         "effects": ["inertia", "coupling", "axial_stiffening"], "damping": {"model": "modal", "zeta": 0.02}}
@@ -80,7 +81,7 @@ def test_csv_and_plot(pool_result, tmp_path):
 def test_user_executor_and_blas_pinning():
     with cf.ProcessPoolExecutor(max_workers=2, initializer=sweep._init_worker,
                                 mp_context=sweep._mp_context()) as ex:
-        assert {f.result() for f in [ex.submit(sweep.blas_threads) for _ in range(4)]} == {1}
+        assert {f.result() for f in [ex.submit(threads.thread_count) for _ in range(4)]} == {1}
         pts = sweep.make_points(BASE, {"speed_rpm": [500.0], "mechanism.rod": [0.1, 0.3]})
         res = sweep.run_sweep(None, points=pts, executor=ex, progress=False, frequencies=False)
         assert ex.submit(sum, [1, 2]).result() == 3          # the caller's executor is left running

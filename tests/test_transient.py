@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from kedfem.errors import ConvergenceWarning, InputError
-from kedfem.lab.transient import integrate_periodic, sampled_system
+from kedfem.lab.transient import integrate_periodic, integrate_sampled, sampled_system
 
 M1, K1, ZETA1, T1 = 1.0, (2 * math.pi * 3) ** 2, 0.1, 1.0
 C1 = 2 * ZETA1 * math.sqrt(K1 * M1)
@@ -105,3 +105,76 @@ def test_transient_input_validation():
         integrate_periodic(sdof, 1, 1.0, "euler")
     with pytest.raises(InputError, match="period"):
         integrate_periodic(sdof, 1, -1.0)
+
+
+def _sdof_samples(n):
+    """SDOF terms sampled at t_k = k T1 / n: constant M, C, K (1, 1) and Q (n, 1)."""
+    t = np.arange(n) * (T1 / n)
+    return np.eye(1) * M1, np.eye(1) * C1, np.eye(1) * K1, np.sin(W1 * t)[:, None]
+
+
+def _two_dof_samples(n, T=0.5):
+    """Time-varying 2-DOF terms at t_k = k T / n: M, C, K (n, 2, 2), Q (n, 2)."""
+    t = np.arange(n) * (T / n)
+    s = np.sin(2 * math.pi * t / T)
+    K = np.array([[300.0, -100.0], [-100.0, 200.0]]) * (1 + 0.1 * s)[:, None, None]
+    M = np.broadcast_to(np.diag([1.0, 2.0]), (n, 2, 2)) * (1 + 0.05 * s**2)[:, None, None]
+    C = np.broadcast_to(np.diag([2.0, 3.0]), (n, 2, 2)).copy()
+    Q = np.stack([np.cos(2 * math.pi * t / T), 0.5 * s], axis=1)
+    return M, C, K, Q, T
+
+
+def test_sampled_newmark_equals_newmark_on_the_interpolated_system():
+    n_out, sub = 10, 4
+    M, C, K, Q, T = _two_dof_samples(n_out * sub)
+    system = sampled_system(M, C, K, Q, T, kind="linear")  # exact at the steps
+    a = integrate_periodic(system, 2, T, "newmark", n_out=n_out, steps_per_output=sub, tol=1e-11)
+    b = integrate_sampled(M, C, K, Q, T, "newmark", n_out=n_out, tol=1e-11)
+    assert a.converged and b.converged and a.cycles == b.cycles
+    assert b.U.shape == b.V.shape == (n_out, 2) and np.allclose(b.t, a.t)
+    assert np.abs(a.U - b.U).max() < 1e-12 * np.abs(a.U).max()
+    assert np.abs(a.V - b.V).max() < 1e-12 * np.abs(a.V).max()
+    assert (a.nfev, b.nfev, b.njev) == (n_out * sub + 1, n_out * sub, 0)
+
+
+@pytest.mark.parametrize("method", ["radau", "dop853"])
+def test_sampled_ivp_vs_closed_form(method):
+    rtol = 1e-10 if method == "dop853" else 1e-8
+    r = integrate_sampled(*_sdof_samples(128), T1, method, rtol=rtol, atol=1e-13, tol=1e-8, n_out=32)
+    u, v = sdof_exact(r.t)
+    assert r.converged and r.U.shape == (32, 1)
+    # periodic cubic spline of sin on 128 nodes: relative error ~ (2 pi / 128)^4 / 384
+    assert np.abs(r.U[:, 0] - u).max() / np.abs(u).max() < 2e-6
+    assert np.abs(r.V[:, 0] - v).max() / np.abs(v).max() < 2e-6
+    assert r.nfev > 0 and (r.njev > 0) == (method == "radau")
+
+
+def test_monitor_stops_at_the_first_cycle_whose_history_repeats():
+    M, C, K, Q, T = _two_dof_samples(64)
+    def monitor(U):
+        return U[:, 1]
+
+    r = integrate_sampled(M, C, K, Q, T, "newmark", tol=1e-6, monitor=monitor, scale=1e-3)
+    assert r.converged and r.cycles > 2 and r.defect <= 1e-6
+    with pytest.warns(ConvergenceWarning, match="not periodic"):
+        early = integrate_sampled(M, C, K, Q, T, "newmark", tol=1e-6, monitor=monitor, scale=1e-3,
+                                  max_cycles=r.cycles - 1)
+    assert not early.converged and early.defect > 1e-6
+    # the state test at a tight tolerance agrees with the monitored run to about its tolerance
+    s = integrate_sampled(M, C, K, Q, T, "newmark", tol=1e-12)
+    assert np.abs(s.U[:, 1] - r.U[:, 1]).max() < 1e-5 * 1e-3
+    with pytest.warns(ConvergenceWarning):
+        one = integrate_sampled(M, C, K, Q, T, "newmark", monitor=monitor, max_cycles=1, tol=1.0)
+    assert not one.converged and one.defect == math.inf  # no previous cycle to compare with
+
+
+def test_sampled_input_validation():
+    M, C, K, Q = _sdof_samples(10)
+    with pytest.raises(InputError, match="multiple of n_out"):
+        integrate_sampled(M, C, K, Q, T1, "newmark", n_out=3)
+    with pytest.raises(InputError, match="K must have shape"):
+        integrate_sampled(M, C, np.ones((9, 1, 1)), Q, T1)
+    with pytest.raises(InputError, match="Q must have shape"):
+        integrate_sampled(M, C, K, Q[:, 0], T1)
+    with pytest.raises(InputError, match="radau, dop853, newmark"):
+        integrate_sampled(M, C, K, Q, T1, "euler")

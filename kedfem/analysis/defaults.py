@@ -1,15 +1,21 @@
-"""The built-in default scene: the paper's mould oscillator, group 1, nominal speed, all its effects."""
+"""The built-in default scene: the preset scene of the paper's mould oscillator.
+
+The scene is defined once, by the mechanism itself (the ``PRESET`` of the
+catalogue's ``mould_oscillator``: all its effects, 2 % modal damping, the
+paper's fixed-point iteration to ``eps = 1e-6``, tolerance-driven time
+elements). :func:`default_scene`, ``kedfem run`` without a scene and a scene
+file with only ``[mechanism] name = "mould_oscillator"`` all build it from
+there (:meth:`kedfem.catalogue.MechanismInfo.scene`, :func:`kedfem.io.scenefile.parse_scene`).
+"""
 
 from __future__ import annotations
 
-from ..fe.effects import ModalDamping
 from .scene import Scene
 
-__all__ = ["MOULD_EFFECTS", "default_scene"]
+__all__ = ["DEFAULT_MECHANISM", "default_scene"]  # and MOULD_EFFECTS, resolved on first use
 
-#: every effect the mould oscillator model declares
-MOULD_EFFECTS = ("inertia", "coupling", "axial_stiffening", "geometric_nonlinearity", "gravity", "springs",
-                 "loads")
+#: Catalogue name of the mechanism whose preset scene is the default scene.
+DEFAULT_MECHANISM = "mould_oscillator"
 
 
 def default_scene(group: int = 1, steps: int | None = None, **mechanism_params) -> Scene:
@@ -23,16 +29,24 @@ def default_scene(group: int = 1, steps: int | None = None, **mechanism_params) 
         Fixed number of time elements (default: as many as the scene's
         tolerance, 1e-3 on every link's peaks, needs).
     **mechanism_params
-        Overrides of :data:`mechanisms.mould_oscillator.DEFAULTS`.
+        Other parameters of the mould oscillator (its ``DEFAULTS``).
 
     Returns
     -------
     Scene
-        All effects of :data:`MOULD_EFFECTS`, 2 % modal damping, the default
-        time scheme, the paper's fixed-point iteration (Newton-like with the
-        tangent terms) to ``eps = 1e-6``.
+        The mechanism's preset scene: all effects of :data:`MOULD_EFFECTS`, 2 %
+        modal damping, the default time scheme, the paper's fixed-point
+        iteration (Newton-like with the tangent terms) to ``eps = 1e-6``.
     """
-    from ..catalogue import build
-    mech = build("mould_oscillator", group=group, **mechanism_params)
-    return Scene(mech, steps=steps, effects=MOULD_EFFECTS, damping=ModalDamping(0.02),
-                 eps=1e-6, nonlinear_method="fixed-point", name=f"mould oscillator, group {group}")
+    from ..catalogue import info
+    scene_args = {} if steps is None else {"steps": steps}
+    return info(DEFAULT_MECHANISM).scene(dict(group=group, **mechanism_params), **scene_args)
+
+
+def __getattr__(name: str):
+    # MOULD_EFFECTS: every effect the mould oscillator model declares, read from its
+    # preset when first asked for (kept for the code that imports it from here)
+    if name == "MOULD_EFFECTS":
+        from ..catalogue import info
+        return info(DEFAULT_MECHANISM).preset.effects
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -18,14 +18,16 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from ..fe.assembly import FEModel
-from ..fe.effects import Assembler, check_effects
+from ..fe.model import FEModel
+from ..fe.assembler import Assembler
+from ..fe.effects import check_effects
 from ..solvers.eigen import generalised_eigh
 from ..errors import InputError
 from ..motion.kinematics import Motion, kinematics, kinematics_at, static_motion
 from ..model.mechanism import Mechanism
 
-__all__ = ["ModalResult", "GlobalMatrices", "natural_frequencies", "global_matrices", "eig_frequencies"]
+__all__ = ["ModalResult", "GlobalMatrices", "Frequencies", "natural_frequencies", "global_matrices", "eig_frequencies",
+           "frequencies_over_cycle", "modes_at"]
 
 log = logging.getLogger(__name__)
 
@@ -76,6 +78,39 @@ class GlobalMatrices:
     Q: np.ndarray
     dof_labels: tuple[str, ...]
     crank_angle: float
+
+
+@dataclass(frozen=True)
+class Frequencies:
+    """Natural frequencies over the cycle at the (converged) periodic state.
+
+    Attributes
+    ----------
+    crank_angle : ndarray, shape (n,)
+        [rad].
+    modal : ndarray, shape (n, k)
+        Undamped modal eigenanalysis ``K phi = omega^2 M phi`` [Hz].
+    state_space : ndarray, shape (n, k)
+        ``|lambda| / 2 pi`` of the eigenvalues of the state matrix ``F`` with
+        damping and Coriolis coupling [Hz].
+    damping_ratio : ndarray, shape (n, k)
+        ``-Re(lambda) / |lambda|`` of the same eigenvalues.
+    """
+
+    crank_angle: np.ndarray
+    modal: np.ndarray
+    state_space: np.ndarray
+    damping_ratio: np.ndarray
+
+    @property
+    def fundamental(self) -> float:
+        """Cycle mean of the lowest state-space frequency [Hz]."""
+        return float(np.mean(self.state_space[:, 0]))
+
+    @property
+    def fundamental_modal(self) -> float:
+        """Cycle mean of the lowest modal frequency [Hz]."""
+        return float(np.mean(self.modal[:, 0]))
 
 
 def _motion_at(mechanism: Mechanism, crank_angle) -> Motion:
@@ -216,3 +251,73 @@ def global_matrices(mechanism: Mechanism, crank_angle: float = 0.0, effects=(),
     if dC is not None:
         C = C + sp.csr_matrix(dC[0])
     return GlobalMatrices(M, C, K, Q, tuple(model.dof_labels), float(motion.crank_angle[0]))
+
+
+def _about_state(model: FEModel, motion: Motion, scene, U, V, idx):
+    """Co-moving-frame system at the cycle's nodes ``idx`` (None: all), its stiffness with the
+    tangent of the state-dependent effects about the response ``U, V`` (n, N)."""
+    S = Assembler(model, motion, scene.effects, damping=scene.damping, frame=True).system(idx)
+    K = S.K
+    if scene.state_dependent:
+        glob = Assembler(model, motion, scene.effects, damping=scene.damping)
+        Ui, Vi = (U, V) if idx is None else (U[idx], V[idx])
+        _dC, dK, _dQ = glob.state_terms(Ui, Vi, idx)
+        if dK is not None:
+            K = K + dK
+    return S, K
+
+
+def modes_at(model: FEModel, motion: Motion, scene, U, V, node: int, n_modes: int):
+    """Undamped mode shapes at one time node of a periodic response (co-moving frame).
+
+    Parameters
+    ----------
+    model, motion, scene
+        Of the periodic result.
+    U, V : ndarray, shape (n, N)
+        The response [m, rad] and its rate, about which state-dependent effects are linearised.
+    node : int
+        Time node.
+    n_modes : int
+
+    Returns
+    -------
+    f : ndarray, shape (k,)
+        Frequencies [Hz].
+    phi : ndarray, shape (N, k)
+        Mass-normalised mode shapes.
+    """
+    idx = np.array([node])
+    S, K = _about_state(model, motion, scene, U, V, idx)
+    f, phi = eig_frequencies(S.M, K, min(n_modes, model.n_dof), shapes=True)
+    return f[0], phi[0]
+
+
+def frequencies_over_cycle(model: FEModel, motion: Motion, scene, U, V, n_modes: int = 4,
+                           idx=None) -> Frequencies:
+    """Natural frequencies at the time nodes ``idx`` (None: all) of a periodic response.
+
+    Undamped modal frequencies of ``(K, M)`` and the state-space frequencies and
+    damping ratios of ``F = [[0, I], [-M^-1 K, -M^-1 C]]`` (co-moving frame), with
+    the state-dependent effects linearised about ``U, V`` (n, N).
+
+    Returns
+    -------
+    Frequencies
+        Arrays (nt, k) [Hz].
+    """
+    from ..solvers.periodic import _state_matrix
+    S, K = _about_state(model, motion, scene, U, V, idx)
+    k = min(n_modes, model.n_dof)
+    fm = eig_frequencies(S.M, K, k)
+    Minv = np.linalg.inv(S.M)
+    lam = np.linalg.eigvals(_state_matrix(Minv @ K, Minv @ S.C))
+    # oscillatory eigenvalues (one of each conjugate pair), lowest |lambda| first
+    tol = 1e-9 * np.abs(lam).max(axis=1, keepdims=True)
+    mag = np.where(lam.imag > tol, np.abs(lam), np.inf)
+    order = np.argsort(mag, axis=1)[:, :k]
+    sel = np.take_along_axis(lam, order, axis=1)
+    ok = np.isfinite(np.take_along_axis(mag, order, axis=1))
+    fs = np.where(ok, np.abs(sel) / (2 * math.pi), np.nan)
+    zs = np.where(ok, -sel.real / np.where(ok, np.abs(sel), 1.0), np.nan)
+    return Frequencies(motion.crank_angle if idx is None else motion.crank_angle[idx], fm, fs, zs)

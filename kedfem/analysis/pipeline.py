@@ -27,13 +27,14 @@ import numpy as np
 
 from . import accuracy
 from ..solvers import schemes
-from ..fe.assembly import FEModel
-from ..fe.effects import Assembler, ModalDamping
+from ..fe.model import FEModel
+from ..fe.assembler import Assembler
+from ..fe.damping import ModalDamping
 from ..errors import AccuracyWarning, InputError
 from ..motion.kinematics import Cycle, kinematics
 from ..fe.modal_damping import DampingField
 from ..solvers.nonlinear import fixed_point, fixed_point_or_anderson
-from ..solvers.periodic import _blas_one_thread
+from ..solvers.threads import one_blas_thread
 from .results import PeriodicResult, Sampler, Stability, Timings, stability_verdict
 from .scene import MAX_STEPS, Scene
 
@@ -189,7 +190,7 @@ def solve(scene: Scene) -> PeriodicResult:
     # one BLAS thread: the batched small-matrix work (eigh of the modal
     # damping, products, the periodic solve) ran 10-40x slower on OpenBLAS's
     # threads whenever the other core was busy (benchmarks/peers.py)
-    with _blas_one_thread():
+    with one_blas_thread():
         return _Run(scene).run()
 
 
@@ -246,7 +247,7 @@ class _Run:
         if self._field is None:
             def exact(t):
                 asm = Assembler(self.model, self.cycle.at(t), (), damping=sc.damping)
-                return asm._damping(*asm.structural())
+                return asm.damping_matrix(*asm.structural())
 
             self._field = DampingField(exact, sc.period)
         return self._field

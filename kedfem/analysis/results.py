@@ -11,7 +11,8 @@ import numpy as np
 
 from ..model import elements as el
 from . import recovery
-from ..fe.assembly import FEModel
+from .modal import Frequencies, frequencies_over_cycle, modes_at
+from ..fe.model import FEModel
 from ..errors import InputError
 from ..motion.kinematics import Motion
 
@@ -221,39 +222,6 @@ def stability_verdict(rho: float, error: float | None, tol: float = 1e-9) -> str
     if rho - margin > 1.0:
         return "unstable"
     return "marginal"
-
-
-@dataclass(frozen=True)
-class Frequencies:
-    """Natural frequencies over the cycle at the (converged) periodic state.
-
-    Attributes
-    ----------
-    crank_angle : ndarray, shape (n,)
-        [rad].
-    modal : ndarray, shape (n, k)
-        Undamped modal eigenanalysis ``K phi = omega^2 M phi`` [Hz].
-    state_space : ndarray, shape (n, k)
-        ``|lambda| / 2 pi`` of the eigenvalues of the state matrix ``F`` with
-        damping and Coriolis coupling [Hz].
-    damping_ratio : ndarray, shape (n, k)
-        ``-Re(lambda) / |lambda|`` of the same eigenvalues.
-    """
-
-    crank_angle: np.ndarray
-    modal: np.ndarray
-    state_space: np.ndarray
-    damping_ratio: np.ndarray
-
-    @property
-    def fundamental(self) -> float:
-        """Cycle mean of the lowest state-space frequency [Hz]."""
-        return float(np.mean(self.state_space[:, 0]))
-
-    @property
-    def fundamental_modal(self) -> float:
-        """Cycle mean of the lowest modal frequency [Hz]."""
-        return float(np.mean(self.modal[:, 0]))
 
 
 @dataclass(frozen=True)
@@ -625,21 +593,9 @@ class PeriodicResult:
         phi : ndarray, shape (N, k)
             Mass-normalised mode shapes (DOF order of ``dof_labels``).
         """
-        from ..fe.effects import Assembler
-        from .modal import eig_frequencies
         if not (0 <= node < self.n):
             raise InputError(f"mode_shapes: node must lie in 0..{self.n - 1}, got {node}")
-        sc = self.scene
-        idx = np.array([node])
-        S = Assembler(self.model, self.motion, sc.effects, damping=sc.damping, frame=True).system(idx)
-        K = S.K
-        if sc.state_dependent:
-            glob = Assembler(self.model, self.motion, sc.effects, damping=sc.damping)
-            _dC, dK, _ = glob.state_terms(self.U[idx], self.V[idx], idx)
-            if dK is not None:
-                K = K + dK
-        f, phi = eig_frequencies(S.M, K, min(n_modes, self.model.n_dof), shapes=True)
-        return f[0], phi[0]
+        return modes_at(self.model, self.motion, self.scene, self.U, self.V, node, n_modes)
 
     def joint_displacement(self, joint: str, U: np.ndarray | None = None) -> np.ndarray:
         """Elastic displacement (n, 2) [m] of a joint (global components).
@@ -853,8 +809,8 @@ class PeriodicResult:
             ``range(0, n, n // 36)``, give the cycle means of a fine time grid
             at a fraction of the cost (an eigenvalue problem per node).
         """
-        from ..solvers.periodic import _blas_one_thread
-        with _blas_one_thread():
+        from ..solvers.threads import one_blas_thread
+        with one_blas_thread():
             return self._frequencies(n_modes, nodes)
 
     def _frequencies(self, n_modes: int = 4, nodes=None) -> Frequencies:
@@ -871,31 +827,6 @@ class PeriodicResult:
             key = ("freq", n_modes, tuple(int(i) for i in idx))
         if key in self._cache:
             return self._cache[key]
-        from ..fe.effects import Assembler
-        from .modal import eig_frequencies
-        sc = self.scene
-        asm = Assembler(self.model, self.motion, sc.effects, damping=sc.damping, frame=True)
-        S = asm.system(idx)
-        K = S.K
-        if sc.state_dependent:
-            glob = Assembler(self.model, self.motion, sc.effects, damping=sc.damping)
-            U, V = (self.U, self.V) if idx is None else (self.U[idx], self.V[idx])
-            _dC, dK, _dQ = glob.state_terms(U, V, idx)
-            if dK is not None:
-                K = K + dK
-        k = min(n_modes, self.model.n_dof)
-        fm = eig_frequencies(S.M, K, k)
-        from ..solvers.periodic import _state_matrix
-        Minv = np.linalg.inv(S.M)
-        lam = np.linalg.eigvals(_state_matrix(Minv @ K, Minv @ S.C))
-        # oscillatory eigenvalues (one of each conjugate pair), lowest |lambda| first
-        tol = 1e-9 * np.abs(lam).max(axis=1, keepdims=True)
-        mag = np.where(lam.imag > tol, np.abs(lam), np.inf)
-        order = np.argsort(mag, axis=1)[:, :k]
-        sel = np.take_along_axis(lam, order, axis=1)
-        ok = np.isfinite(np.take_along_axis(mag, order, axis=1))
-        fs = np.where(ok, np.abs(sel) / (2 * math.pi), np.nan)
-        zs = np.where(ok, -sel.real / np.where(ok, np.abs(sel), 1.0), np.nan)
-        out = Frequencies(self.crank_angle if idx is None else self.crank_angle[idx], fm, fs, zs)
+        out = frequencies_over_cycle(self.model, self.motion, self.scene, self.U, self.V, n_modes, idx)
         self._cache[key] = out
         return out

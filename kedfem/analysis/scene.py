@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..fe.effects import EFFECTS, ModalDamping, Rayleigh, check_effects
+from ..fe.effects import ModalDamping, Rayleigh, check_effects, chosen
 from ..errors import InputError
 from ..model.mechanism import Mechanism
 
@@ -225,4 +225,4 @@ class Scene:
     @property
     def state_dependent(self) -> bool:
         """True if a chosen effect depends on the elastic state (the solve iterates)."""
-        return any(EFFECTS[e].state_dependent(self._mech) for e in self.effects)
+        return any(e.state_dependent(self._mech) for e in chosen(self.effects))

@@ -12,8 +12,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse.linalg as spla
 
-from ..fe.assembly import FEModel
-from ..fe.effects import Assembler, check_effects
+from ..fe.model import FEModel
+from ..fe.assembler import Assembler
+from ..fe.effects import check_effects
 from ..errors import KedError
 from ..model.mechanism import Mechanism
 from .modal import _motion_at

@@ -22,14 +22,13 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
-from .defaults import MOULD_EFFECTS
-from ..fe.effects import Assembler
+from ..fe.assembler import Assembler
 from ..errors import KedError
 from .pipeline import solve
 from .scene import Scene
 
 __all__ = ["FrequencyCheck", "ResponseCheck", "ValidationReport", "modal_superposition", "validate",
-           "table3", "MOULD_EFFECTS"]
+           "table3"]
 
 
 

@@ -1,6 +1,7 @@
-"""The finite-element wing: from a mechanism in motion to M, C, K and Q.
+"""The finite-element wing: from a mechanism in motion to q-space M, C, K and Q.
 
-`assembly` (DOF numbering, constraint maps, scattering: `FEModel`), `effects` (the effect
-registry, the `Assembler`, damping models), one module per plug-in effect (`joint_torque`),
-`modal_damping`, `reduction` (Craig-Bampton).
+`model` (`FEModel`: `dofs` numbering, `maps` constraint maps, `scatter`), `structure` (element
+matrices assembled in every scene), `effects/` (one module per effect and their registry),
+`assembler` (structure + chosen effects at any instants, state terms), `damping` (Rayleigh,
+modal), `modal_damping`, `reduction` (Craig-Bampton).
 """

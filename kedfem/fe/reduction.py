@@ -8,7 +8,7 @@ link's frame, where they are constant over the cycle:
 ``d_interior = Psi d_boundary + Phi eta``  (local link frame).
 
 In the global DOFs the interior then follows ``T(theta)^T (Psi T(theta)
-x_boundary + Phi eta)``; :class:`kedfem.fe.assembly.FEModel` carries this as a
+x_boundary + Phi eta)``; :class:`kedfem.fe.model.FEModel` carries this as a
 time-varying constraint map, so the coupling, stiffening and non-linear terms
 of the full elements are projected consistently, with the exact time
 derivatives of the map.

@@ -53,8 +53,12 @@ names or in brackets)::
     speed_rpm = [500, 1000, 1500]
     "mechanism.elements" = [4, 8]
 
-The defaults of ``effects``, ``damping`` and the solver knobs depend on the
-mechanism (:data:`PRESETS`); ``kedfem list`` prints them. Without ``steps``
+The defaults of ``effects``, ``damping``, the solver knobs and ``name`` are
+the mechanism's preset scene, which the mechanism declares itself (its
+``PRESET``, :class:`kedfem.catalogue.Preset`; ``kedfem list`` prints them); so
+are the parameters that may be negative (``SIGNED_PARAMETERS``; every other
+numeric parameter must be >= 0). This module asks the catalogue
+(:func:`kedfem.catalogue.info`) and names no mechanism. Without ``steps``
 the solve picks the number of time elements that meets ``rtol`` (from
 ``accuracy``, :data:`kedfem.analysis.scene.ACCURACY_PRESETS`); keys given in the file
 win over the presets.
@@ -63,23 +67,26 @@ win over the presets.
 from __future__ import annotations
 
 import copy
-import inspect
 import itertools
 import logging
 import math
 import re
 import tomllib
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
-from ..fe.effects import EFFECTS, LINEAR_EFFECTS, ModalDamping, Rayleigh
-from ..errors import InputError, KedError, did_you_mean
+from .. import catalogue
 from ..analysis.scene import ACCURACY_PRESETS, HOLDS, MAX_STEPS, NONLINEAR_METHODS, Scene
+from ..catalogue import SOLVER_KEYS, Preset
+from ..catalogue import parameters as mechanism_parameters
+from ..errors import InputError, KedError, did_you_mean
+from ..fe.effects import EFFECTS, ModalDamping, Rayleigh
 
-__all__ = ["SceneFileError", "Outputs", "Preset", "PRESETS", "SceneSpec", "load_scene", "load_sweep",
+__all__ = ["SceneFileError", "Outputs", "Preset", "SceneSpec", "load_scene", "load_sweep",
            "load_spec", "read_scene_file", "scene_from_dict", "parse_scene", "with_overrides", "mechanism_parameters",
            "preset", "MAX_STEPS", "MAX_ELEMENTS", "MAX_ITER", "MAX_MODES", "MAX_SWEEP_POINTS", "RPM",
            "check_steps", "grid_points", "grid_size", "describe_damping", "scene_summary"]
@@ -99,9 +106,6 @@ MAX_MODES = 24
 MAX_SWEEP_POINTS = 10_000
 #: Largest scene file [bytes] (scene files are a few hundred bytes).
 MAX_FILE_BYTES = 1_000_000
-#: Mechanism parameters that may be negative (angles, coordinates, heights, signed speeds);
-#: every other numeric mechanism parameter must be >= 0.
-SIGNED_PARAMETERS = frozenset({"crank_angle", "o6", "leaf_height", "casting_speed"})
 
 
 class SceneFileError(InputError):
@@ -132,73 +136,15 @@ class SceneFileError(InputError):
 
 
 # ------------------------------------------------------------------ presets
-@dataclass(frozen=True)
-class Preset:
-    """Defaults a scene file inherits from its mechanism when it omits a key.
-
-    ``solver`` holds ``(key, value)`` pairs of :class:`~kedfem.analysis.scene.Scene`
-    solver arguments (``eps``, ``max_iter``, ``nonlinear_method``, ``delta``).
-    ``steps`` None: tolerance-driven.
-    """
-
-    steps: int | None
-    effects: tuple[str, ...]
-    damping: Rayleigh | ModalDamping | None
-    hold: str | None = None
-    solver: tuple[tuple[str, Any], ...] = ()
-
-
-_LINEAR = LINEAR_EFFECTS
-_ACTUAL_AXIAL = _LINEAR + ("geometric_nonlinearity",)
-
-#: Per-mechanism defaults of ``effects``, ``damping`` and the solver knobs (the
-#: number of time elements follows from the tolerance). The mould
-#: oscillator's preset is read from :func:`kedfem.analysis.defaults.default_scene` (see
-#: :func:`preset`). The four-bar and six-bar, whose flexible links meet at pins,
-#: take ``geometric_nonlinearity``: the axial forces that stiffen their links are
-#: the actual (elastic) ones, which near resonance differ from the kinetostatic
-#: ones; without it their peaks are 1-2.4 % (four-bar) and 0.1 % (six-bar) off the
-#: geometrically exact model (benchmarks/exact_comparison.py), with it 0.01 %. On
-#: the slider-crank the difference is 0.09 %, under the default tolerance.
-PRESETS: dict[str, Preset] = {
-    "slider_crank": Preset(None, _LINEAR, ModalDamping(0.02)),
-    "four_bar": Preset(None, _ACTUAL_AXIAL, ModalDamping(0.02)),
-    "six_bar": Preset(None, _ACTUAL_AXIAL, ModalDamping(0.02)),
-    "exciter": Preset(None, ("inertia", "coupling", "springs"), ModalDamping(0.02)),
-}
-_FALLBACK = Preset(None, ("inertia", "coupling"), ModalDamping(0.02))
-
-
 def preset(mechanism: str) -> Preset:
-    """Defaults of a mechanism's scenes.
+    """The preset scene mechanism ``mechanism`` declares (:attr:`kedfem.catalogue.MechanismInfo.preset`).
 
-    For ``mould_oscillator`` they are those of the built-in default scene
-    (:func:`kedfem.analysis.defaults.default_scene`), so ``[mechanism] name =
-    "mould_oscillator"`` alone is that scene.
+    Raises
+    ------
+    InputError
+        For an unknown mechanism.
     """
-    key = str(mechanism).replace("-", "_")
-    if key == "mould_oscillator":
-        from ..analysis.defaults import default_scene
-        sc = default_scene()
-        return Preset(sc.steps, sc.effects, sc.damping, sc.hold,
-                      (("eps", sc.eps), ("max_iter", sc.max_iter), ("nonlinear_method", sc.nonlinear_method),
-                       ("delta", sc.delta)))
-    return PRESETS.get(key, _FALLBACK)
-
-
-def mechanism_parameters(module) -> dict[str, Any]:
-    """Parameters (name -> default) a mechanism module's ``build`` accepts.
-
-    ``DEFAULTS`` when the module has it, else the keyword defaults of ``build``.
-    """
-    d = getattr(module, "DEFAULTS", None)
-    if isinstance(d, Mapping):
-        return dict(d)
-    out = {}
-    for p in inspect.signature(module.build).parameters.values():
-        if p.default is not inspect.Parameter.empty:
-            out[p.name] = p.default
-    return out
+    return catalogue.info(mechanism).preset
 
 
 # ------------------------------------------------------------------ outputs
@@ -397,12 +343,12 @@ def check_steps(v, key: str = "steps", source: str | None = None) -> int:
 _TOP_KEYS = ("name", "accuracy", "rtol", "method", "steps", "speed_rpm", "hold", "effects", "mechanism",
              "damping", "solver", "output", "sweep")
 _DAMPING_KEYS = ("model", "alpha", "beta", "zeta")
-_SOLVER_KEYS = ("eps", "max_iter", "nonlinear_method", "delta")
+_SOLVER_KEYS = SOLVER_KEYS
 _OUTPUT_KEYS = ("dir", "plots", "csv", "npz", "vtk", "render", "modes", "scale", "every", "dofs")
 
 
 def _mechanism(ctx: _Ctx, data: Mapping):
-    from .. import catalogue
+    """The mechanism table: its catalogue entry, the parameters given and the built mechanism."""
     if "mechanism" not in data:
         raise ctx.error("mechanism", "missing: a scene needs a [mechanism] table with name = one of "
                         f"{', '.join(catalogue.available())}")
@@ -421,10 +367,10 @@ def _mechanism(ctx: _Ctx, data: Mapping):
         raise ctx.error("mechanism.name", f"unknown mechanism {name!r}{_suggest(key, avail)}; "
                         f"available: {', '.join(avail)}, or 'package.module:function' for a builder of your own")
     try:
-        module = catalogue.get(key)
+        entry = catalogue.info(key)
     except KedError as e:
         raise ctx.error("mechanism.name", str(e)) from None
-    defaults = mechanism_parameters(module)
+    defaults = entry.parameters
     params = {}
     for k, v in m.items():
         if k == "name":
@@ -435,9 +381,9 @@ def _mechanism(ctx: _Ctx, data: Mapping):
         if k not in defaults:
             known = [d for d in defaults if d != "speed"]
             raise ctx.error(pk, f"unknown parameter of {key}{_suggest(k, known)}; known: {', '.join(known)}")
-        params[k] = _mech_value(ctx, pk, k, v, defaults[k])
+        params[k] = _mech_value(ctx, pk, k, v, defaults[k], k in entry.signed)
     try:
-        mech = module.build(**params)
+        mech = entry.build(**params)
     except KedError as e:
         # point at the parameter the builder names ("coupler must be a length > 0 m"), else the table
         msg = str(e)
@@ -447,11 +393,10 @@ def _mechanism(ctx: _Ctx, data: Mapping):
         log.debug("mechanism %s rejected %r", key, params, exc_info=True)
         raise ctx.error("mechanism", f"{key} cannot be built with these parameters "
                         f"({type(e).__name__}: {e})") from None
-    return key, params, mech
+    return entry, params, mech
 
 
-def _mech_value(ctx, key, name, v, default):
-    signed = name in SIGNED_PARAMETERS
+def _mech_value(ctx, key, name, v, default, signed: bool):
     if isinstance(default, bool):
         return _bool(ctx, key, v)
     if isinstance(default, int):
@@ -581,12 +526,10 @@ def _flatten(d: Mapping, prefix=""):
             yield f"{prefix}{k}", v
 
 
-def _sweep(ctx, v, mech_key: str) -> dict[str, tuple]:
+def _sweep(ctx, v, params: Mapping[str, Any]) -> dict[str, tuple]:
     if v is None:
         return {}
     _table(ctx, "sweep", v)
-    from .. import catalogue
-    params = mechanism_parameters(catalogue.get(mech_key))
     axes = {}
     n = 1
     for path, values in _flatten(v):
@@ -609,12 +552,6 @@ def _sweep(ctx, v, mech_key: str) -> dict[str, tuple]:
             raise ctx.error(key, f"the grid has more than {MAX_SWEEP_POINTS} points (MAX_SWEEP_POINTS)")
         axes[path] = tuple(values)
     return axes
-
-
-def _default_name(key: str, params: Mapping, mech) -> str:
-    if key == "mould_oscillator":
-        return f"mould oscillator, group {params.get('group', 1)}"
-    return mech.name
 
 
 def parse_scene(data: Mapping, *, source: str | None = None, text: str | None = None,
@@ -645,36 +582,38 @@ def parse_scene(data: Mapping, *, source: str | None = None, text: str | None = 
     if not isinstance(data, Mapping):
         raise ctx.error(None, f"a scene must be a table, got {_typename(data)}")
     _unknown(ctx, data, _TOP_KEYS, "")
-    key, params, mech = _mechanism(ctx, data)
-    pre = preset(key)
-    kw: dict[str, Any] = {}
-    # an accuracy preset replaces the mechanism's tolerance and solver knobs
-    # (keys given in the file still win)
+    entry, params, mech = _mechanism(ctx, data)
+    # the mechanism's preset scene; an accuracy preset replaces its number of time
+    # elements, hold and tolerances, a method its hold (keys given in the file still win)
+    kw: dict[str, Any] = entry.preset.scene_arguments()
     accuracy = _str(ctx, "accuracy", data["accuracy"], tuple(ACCURACY_PRESETS)) if "accuracy" in data else None
     if accuracy is not None:
         kw["accuracy"] = accuracy
+        for k in ("steps", "hold", "eps", "delta"):
+            kw.pop(k, None)
     if "rtol" in data:
         kw["rtol"] = _float(ctx, "rtol", data["rtol"], lo=0.0, hi=1.0, lo_open=True, hi_open=True)
     if "method" in data:
         from ..solvers.schemes import names as scheme_names
         kw["method"] = _str(ctx, "method", data["method"], scheme_names())
-    kw["steps"] = _int(ctx, "steps", data["steps"], 3, MAX_STEPS,
-                       " (the cost grows linearly with it; rtol picks the number of elements a "
-                       "result needs; see kedfem.analysis.scene.MAX_STEPS)") if "steps" in data else (
-                           None if accuracy else pre.steps)
+        kw.pop("hold", None)
+    if "steps" in data:
+        kw["steps"] = _int(ctx, "steps", data["steps"], 3, MAX_STEPS,
+                           " (the cost grows linearly with it; rtol picks the number of elements a "
+                           "result needs; see kedfem.analysis.scene.MAX_STEPS)")
     if "speed_rpm" in data:
         kw["speed"] = _float(ctx, "speed_rpm", data["speed_rpm"], nonzero=True, unit=" [rev/min]") * RPM
     # a method given on the command line replaces the file's hold
     hold_dropped = "method" in ctx.overridden and "hold" not in ctx.overridden
-    kw["hold"] = _str(ctx, "hold", data["hold"], HOLDS) if ("hold" in data and not hold_dropped) else (
-        None if (accuracy or "method" in data) else pre.hold)
-    kw["effects"] = _effects(ctx, data["effects"]) if "effects" in data else pre.effects
-    kw["damping"] = _damping(ctx, data.get("damping"), pre.damping)
-    kw.update({k: v for k, v in pre.solver if not (accuracy and k in ("eps", "delta"))})
+    if "hold" in data and not hold_dropped:
+        kw["hold"] = _str(ctx, "hold", data["hold"], HOLDS)
+    if "effects" in data:
+        kw["effects"] = _effects(ctx, data["effects"])
+    kw["damping"] = _damping(ctx, data.get("damping"), kw["damping"])
     kw.update(_solver(ctx, data.get("solver")))
-    kw["name"] = _str(ctx, "name", data["name"]) if "name" in data else _default_name(key, params, mech)
+    kw["name"] = _str(ctx, "name", data["name"]) if "name" in data else entry.scene_name(params, mech)
     outputs = _outputs(ctx, data.get("output"))
-    sweep = _sweep(ctx, data.get("sweep"), key)
+    sweep = _sweep(ctx, data.get("sweep"), entry.parameters)
     try:
         scene = Scene(mech, **kw)
     except KedError as e:

@@ -45,52 +45,19 @@ import numpy as np
 from ..errors import InputError, KedError
 from .export import atomic_path, require
 from ..analysis.results import LinkPeaks
+from ..solvers.threads import pin_process
 
 __all__ = ["SweepPoint", "PointResult", "SweepTable", "SweepResult", "make_points", "run_point", "run_sweep",
-           "parse_axis", "pin_blas", "blas_threads", "point_rows", "TABLE_COLUMNS", "RETRIES"]
+           "parse_axis", "point_rows", "TABLE_COLUMNS", "RETRIES"]
 
 log = logging.getLogger(__name__)
-
-_BLAS_ENV = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
-             "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
-_PINNED: list = []
-
-
-def pin_blas() -> None:
-    """Limit this process's BLAS/OpenMP thread pools to one thread (idempotent).
-
-    Sets the usual environment variables (inherited by any process started
-    later) and, since the libraries are already loaded, limits them at run
-    time with threadpoolctl when it is installed.
-    """
-    if _PINNED:
-        return
-    for k in _BLAS_ENV:
-        os.environ[k] = "1"
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # pragma: no cover - threadpoolctl is a dependency
-        log.warning("threadpoolctl is not installed: BLAS threads of an already loaded library stay unpinned")
-        _PINNED.append(None)
-        return
-    _PINNED.append(threadpool_limits(limits=1))  # kept alive: the limits hold until restored
-
-
-def blas_threads() -> int:
-    """Largest thread count of the BLAS/OpenMP pools loaded in this process (threadpoolctl)."""
-    try:
-        from threadpoolctl import threadpool_info
-    except ImportError:  # pragma: no cover
-        return -1
-    return max((int(i.get("num_threads", 1)) for i in threadpool_info()), default=1)
-
 
 #: Seconds between a worker's checks that the sweep's main process is alive.
 WATCHDOG_PERIOD = 1.0
 
 
 def _init_worker(parent: int | None = None) -> None:
-    pin_blas()
+    pin_process()
     if parent is not None:
         _watch_parent(parent)
 
@@ -288,7 +255,7 @@ def run_point(point: SweepPoint, frequencies: bool = True, pin: bool = True) -> 
     from ..analysis.pipeline import solve
     from .scenefile import scene_from_dict
     if pin:
-        pin_blas()
+        pin_process()
     t0 = time.perf_counter()
     try:
         scene = scene_from_dict(point.scene)
@@ -665,7 +632,7 @@ def run_sweep(base: Mapping, axes: Mapping[str, Sequence] | None = None, *, poin
 
 def _run_dask(client, fn, points, bar, on_result=None):
     from distributed import as_completed
-    client.run(pin_blas)
+    client.run(pin_process)
     futs = client.map(fn, list(points), pure=False)
     by_key = {f.key: p for f, p in zip(futs, points)}
     out = {}

@@ -197,7 +197,7 @@ def batched_matmul_rate(batch: int, m: int, *, repeats: int = 5, threads: int = 
         1: one ``np.matmul`` call with numpy's BLAS as configured. ``> 1``: the
         stack split into ``threads`` parts multiplied concurrently in Python
         threads with BLAS limited to one thread each (how kedfem runs its
-        element exponentials; needs threadpoolctl).
+        element exponentials; without threadpoolctl BLAS keeps its threads).
     min_time : float
         Each timing repeats the product until at least this many seconds pass.
     seed : int
@@ -217,7 +217,7 @@ def batched_matmul_rate(batch: int, m: int, *, repeats: int = 5, threads: int = 
             np.matmul(A, B, out=out)
         ctx = None
     else:
-        from threadpoolctl import threadpool_limits
+        from ..solvers.threads import one_blas_thread
         edges = np.linspace(0, batch, threads + 1).round().astype(int)
         parts = [slice(int(a), int(b)) for a, b in itertools.pairwise(edges) if b > a]
         pool = ThreadPoolExecutor(max_workers=len(parts))
@@ -226,7 +226,8 @@ def batched_matmul_rate(batch: int, m: int, *, repeats: int = 5, threads: int = 
             futs = [pool.submit(np.matmul, A[s], B[s], out=out[s]) for s in parts]
             for f in futs:
                 f.result()
-        ctx = threadpool_limits(limits=1, user_api="blas")
+        ctx = one_blas_thread()
+        ctx.__enter__()
     best = math.inf
     try:
         run()  # warm-up
@@ -242,7 +243,7 @@ def batched_matmul_rate(batch: int, m: int, *, repeats: int = 5, threads: int = 
             best = min(best, el / reps)
     finally:
         if ctx is not None:
-            ctx.restore_original_limits()
+            ctx.__exit__(None, None, None)
             pool.shutdown()
     rate = matmul_flops(m) * batch / best
     log.debug("batched_matmul_rate: (%d, %d, %d) threads=%d: %.3g flop/s", batch, m, m, threads, rate)

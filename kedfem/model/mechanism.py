@@ -653,36 +653,39 @@ class Mechanism:
         of joints and members (plus the frame) connected; every flexible
         link has a length; drives on members with one ground joint.
         """
+        state = self._fingerprint()
+        if getattr(self, "_valid", None) == state:
+            return  # validated before, and nothing was added since
         if not self.links and not self.bodies:
             raise InputError(f"{self.name}: has no links or bodies")
-        used = set()
-        for lk in self.links.values():
-            used.update(lk.joints)
-        for b in self.bodies.values():
-            used.update(b.joints)
+        used = {j for m in (*self.links.values(), *self.bodies.values()) for j in m.joints}
         unused = [j for j in self.joints if j not in used]
         if unused:
             raise InputError(f"{self.name}: joint(s) {', '.join(unused)} belong to no link or body")
-        g = nx.Graph()
-        g.add_nodes_from(self.joints)
-        for lk in self.links.values():
-            g.add_edge(lk.a, lk.b)
-        for b in self.bodies.values():
-            for j in b.joints[1:]:
-                g.add_edge(b.joints[0], j)
-        grounded = [j.name for j in self.joints.values() if j.kind in ("ground", "slider")]
+        # the builder's graph, links and bodies only; every grounded part is one part (the frame)
+        g = self.graph
+        members = nx.subgraph_view(g, filter_edge=lambda u, v, k: g.edges[u, v, k]["kind"] in ("link", "body"))
+        grounded, parts = set(), []
+        for comp in nx.connected_components(members):
+            if any(self.joints[j].kind in ("ground", "slider") for j in comp):
+                grounded |= comp
+            else:
+                parts.append(comp)
         if grounded:
-            g.add_node(GROUND)
-            for j in grounded:
-                g.add_edge(GROUND, j)
-        comps = list(nx.connected_components(g))
-        if len(comps) > 1:
-            parts = sorted((sorted(c - {GROUND}) for c in comps), key=len)
+            parts.append(grounded)
+        if len(parts) > 1:
+            parts = sorted((sorted(c) for c in parts), key=len)
             raise InputError(f"{self.name}: the mechanism graph is disconnected; separate parts: "
                              + "; ".join("{" + ", ".join(p) + "}" for p in parts))
         for d in self.drives:
             if d.member not in self.links and d.member not in self.bodies:
                 raise InputError(f"drive on '{d.member}': unknown member")
+        self._valid = state
+
+    def _fingerprint(self) -> tuple:
+        """What :meth:`validate` depends on: the members, joints and drives (all immutable records)."""
+        return (tuple(self.joints.values()), tuple(self.links.values()), tuple(self.bodies.values()),
+                tuple(self.drives), self.graph.number_of_edges())
 
     def with_speed(self, speed: float) -> "Mechanism":
         """A copy whose drives run at ``speed`` [rad/s] (first drive; the others keep their ratio)."""

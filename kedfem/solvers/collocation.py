@@ -54,6 +54,7 @@ from numpy.polynomial import legendre as npleg
 from ..errors import InputError
 from .periodic import (MAX_CONDITION, MIN_NODES, _check_mass, _run_parallel, _Source, _split,
                        default_workers, solve_cyclic)
+from .threads import one_blas_thread
 
 __all__ = ["Tableau", "tableau", "SCHEMES", "solve", "CollocationSolution", "dense", "instants"]
 
@@ -473,7 +474,7 @@ def solve(M, C, K, Q, period: float, scheme: str = "radau3", *, n: int | None = 
     InputError, SingularMassError, ResonanceError
         As :func:`kedfem.solvers.periodic.solve`.
     """
-    from .periodic import _blas_one_thread, check_period
+    from .periodic import check_period
     t_start = time.perf_counter()
     tab = tableau(scheme)
     period = check_period(period)
@@ -498,7 +499,7 @@ def solve(M, C, K, Q, period: float, scheme: str = "radau3", *, n: int | None = 
     elems.keep_ops = ops_bytes <= memory_budget / 4
     per_element = 8.0 * (3 * (s * N) ** 2 + 4 * s * N * (2 * N + 1) + 3 * s * N * N)
     timings: dict[str, float] = {}
-    with _blas_one_thread():
+    with one_blas_thread():
         cyc = solve_cyclic(elems, per_element, method=method, memory_budget=memory_budget,
                            max_condition=max_condition, timings=timings, t_start=t_start)
         t0 = time.perf_counter()

@@ -43,7 +43,6 @@ peak memory does not grow with ``n`` beyond the ``O(n N)`` result.
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import math
 import os
@@ -62,6 +61,7 @@ import scipy.sparse.linalg as spla
 
 from ..errors import InputError, InstabilityWarning, ResonanceError, SingularMassError, UnboundedResponseError
 from .expm import balance, exponential_integrals, second_order_transition
+from .threads import one_blas_thread
 
 __all__ = ["solve", "solve_cyclic", "CyclicSolution", "PeriodicSolution", "HOLDS", "METHODS", "auto_delta", "MIN_NODES"]
 
@@ -507,7 +507,6 @@ def _split(L: int, workers: int, min_part: int = 8) -> list[tuple[int, int]]:
 
 
 _POOL = None
-_BLAS = None
 
 
 def check_period(period) -> float:
@@ -521,20 +520,6 @@ def check_period(period) -> float:
     return period
 
 
-def _blas_one_thread():
-    """Context limiting BLAS to one thread (threadpoolctl if available)."""
-    global _BLAS
-    if _BLAS is None:
-        try:
-            from threadpoolctl import ThreadpoolController
-            _BLAS = ThreadpoolController()
-        except Exception:  # pragma: no cover - optional dependency
-            _BLAS = False
-    if _BLAS is False:
-        return contextlib.nullcontext()
-    return _BLAS.limit(limits=1, user_api="blas")
-
-
 def _run_parallel(work, parts):
     """Run work(i, lo, hi) for every part; in threads when there are several."""
     global _POOL
@@ -543,7 +528,7 @@ def _run_parallel(work, parts):
         return
     if _POOL is None or _POOL._max_workers < len(parts):
         _POOL = ThreadPoolExecutor(max_workers=len(parts), thread_name_prefix="kedfem")
-    with _blas_one_thread():
+    with one_blas_thread():
         futures = [_POOL.submit(work, i, lo, hi) for i, (lo, hi) in enumerate(parts)]
         for fut in futures:
             fut.result()
@@ -650,13 +635,7 @@ def _resolve_shapes(Ms, Cs, Ks, Qs, n):
     return n_, N_
 
 
-def solve(*args, **kwargs) -> PeriodicSolution:
-    # the docstring is _solve's (set below)
-    with _blas_one_thread():
-        return _solve(*args, **kwargs)
-
-
-def _solve(M, C, K, Q, period: float, hold: str = "zoh", *, n: int | None = None,
+def solve(M, C, K, Q, period: float, hold: str = "zoh", *, n: int | None = None,
           delta: float | None = None, method: str = "auto", approximant: str = "taylor",
           memory_budget: float = 256e6, max_condition: float = MAX_CONDITION,
           workers: int | None = None, Kz=None, Qz=None, Cz=None) -> PeriodicSolution:
@@ -731,9 +710,58 @@ def _solve(M, C, K, Q, period: float, hold: str = "zoh", *, n: int | None = None
         ``M`` singular or indefinite at some node (names node and DOFs).
     ResonanceError
         ``I - Phi`` numerically singular (condition above ``max_condition``).
+
+    Notes
+    -----
+    All linear algebra runs on one BLAS thread per kedfem worker
+    (:func:`kedfem.solvers.threads.one_blas_thread`): the matrices are small
+    (2N up to a few hundred) and OpenBLAS's own threading of them was 2-60x
+    slower than one thread whenever the other cores were busy (measured on a
+    shared 2-core machine, ``benchmarks/peers.py``).
+
+    The steps: check the options (:func:`_check_options`), build the
+    transitions (:func:`_element_transitions`), solve the block-cyclic system
+    and its Floquet analysis (:func:`solve_cyclic`).
     """
-    timings: dict[str, float] = {}
-    t_start = time.perf_counter()
+    with one_blas_thread():
+        timings: dict[str, float] = {}
+        t_start = time.perf_counter()
+        period, delta = _check_options(period, hold, method, approximant, delta, memory_budget)
+        elems = _element_transitions(M, C, K, Q, period, hold, n, delta, approximant, workers,
+                                     Kz, Qz, Cz)
+        cyc = solve_cyclic(elems, _element_bytes(elems), method=method,
+                           memory_budget=memory_budget, max_condition=max_condition,
+                           timings=timings, t_start=t_start)
+        return _periodic_solution(elems, cyc, timings)
+
+
+def _check_options(period, hold, method, approximant, delta,
+                   memory_budget) -> tuple[float, float | None]:
+    """Validate the scalar options of :func:`solve` before any work.
+
+    Parameters
+    ----------
+    period : float
+        Period, s.
+    hold, method, approximant : str
+        Names, checked against :data:`HOLDS`, :data:`METHODS` and the approximants.
+    delta : float or None
+        Requested exponential accuracy, in (0, 1), or ``None`` (automatic).
+    memory_budget : float
+        Bytes, > 0.
+
+    Returns
+    -------
+    period : float
+        Period as a float, s.
+    delta : float or None
+        ``delta`` as a float (or ``None``).
+
+    Raises
+    ------
+    InputError
+        The first invalid option, named.
+    """
     if hold not in HOLDS:
         raise InputError(f"unknown hold {hold!r}; valid holds: {', '.join(HOLDS)}")
     if method not in METHODS:
@@ -748,43 +776,85 @@ def _solve(M, C, K, Q, period: float, hold: str = "zoh", *, n: int | None = None
     if not (isinstance(memory_budget, (int, float, np.integer, np.floating))
             and memory_budget > 0):
         raise InputError(f"memory_budget must be a positive number of bytes, got {memory_budget!r}")
+    return period, delta
+
+
+def _linearisation_source(name: str, value, matrix: bool, n: int, N: int) -> _Source:
+    """``Kz``, ``Cz`` (``matrix``: shape (n, N, N)) or ``Qz`` (shape (n, N)), checked sampled."""
+    src = _Source(name, value, matrix)
+    if src.n != n or src.N != N:  # constant or callable: n is None
+        want = f"be sampled with shape ({n}, {N}, {N})" if matrix else f"have shape ({n}, {N})"
+        raise InputError(f"{name} must {want}")
+    return src
+
+
+def _element_transitions(M, C, K, Q, period: float, hold: str, n, delta, approximant: str,
+                         workers, Kz=None, Qz=None, Cz=None) -> _Elements:
+    """Build the transitions: the source of ``(A_k, b_k)`` of the ``n`` time elements.
+
+    Wraps the inputs, infers and checks ``n`` and ``N``, and resolves ``workers``;
+    no exponential is computed here (see :meth:`_Elements.compute`).
+
+    Parameters
+    ----------
+    M, C, K, Q, n, Kz, Qz, Cz
+        As in :func:`solve`: (n, N, N) / (N, N) / callable matrices in kg, N s/m,
+        N/m; (n, N) loads in N.
+    period : float
+        Period, s (checked).
+    hold, approximant : str
+        Checked names.
+    delta : float or None
+        Checked exponential accuracy.
+    workers : int or None
+        Threads for the exponentials; ``None``: :func:`default_workers`.
+
+    Returns
+    -------
+    _Elements
+        State size ``m = 2 N``; ``invariant`` when one ``A`` serves all elements.
+
+    Raises
+    ------
+    InputError
+        Bad shapes or values, in the order: ``M, C, K, Q``, ``n``, ``Cz, Kz, Qz``, ``workers``.
+    """
     Ms = _Source("M", M, True)
     Cs = _Source("C", C, True)
     Ks = _Source("K", K, True)
     Qs = _Source("Q", Q, False)
     n, N = _resolve_shapes(Ms, Cs, Ks, Qs, n)
-    Kzs = Qzs = Czs = None
-    if Cz is not None:
-        Czs = _Source("Cz", Cz, True)
-        if Czs.const or Czs.n != n or Czs.N != N:
-            raise InputError(f"Cz must be sampled with shape ({n}, {N}, {N})")
-    if Kz is not None:
-        Kzs = _Source("Kz", Kz, True)
-        if Kzs.const or Kzs.n != n or Kzs.N != N:
-            raise InputError(f"Kz must be sampled with shape ({n}, {N}, {N})")
-    if Qz is not None:
-        Qzs = _Source("Qz", Qz, False)
-        if Qzs.n != n or Qzs.N != N:
-            raise InputError(f"Qz must have shape ({n}, {N})")
-    m = 2 * N
-    ma = m + (1 if hold == "zoh" else 2)
-    invariant = Ms.const and Cs.const and Ks.const and Kzs is None and Czs is None
+    Czs = None if Cz is None else _linearisation_source("Cz", Cz, True, n, N)
+    Kzs = None if Kz is None else _linearisation_source("Kz", Kz, True, n, N)
+    Qzs = None if Qz is None else _linearisation_source("Qz", Qz, False, n, N)
     if workers is None:
         workers = default_workers()
     elif not (isinstance(workers, (int, np.integer)) and workers >= 1):
         raise InputError(f"workers must be a positive integer or None, got {workers!r}")
-    # elements per chunk: the batched exponential's work memory fits half the budget
-    # (only O(m) per element when invariant: b_k and the scan partial sums)
-    per_element = 8 * m * 8 if invariant else 2 * _WORK_COPIES * ma * ma * 8
-    elems = _Elements(Ms, Cs, Ks, Qs, n, N, period, hold, delta, 1, approximant, int(workers),
-                      Kzs, Qzs, Czs)
-    cyc = solve_cyclic(elems, per_element, method=method, memory_budget=memory_budget,
-                       max_condition=max_condition, timings=timings, t_start=t_start)
+    return _Elements(Ms, Cs, Ks, Qs, n, N, period, hold, delta, 1, approximant, int(workers),
+                     Kzs, Qzs, Czs)
+
+
+def _element_bytes(elems: _Elements) -> int:
+    """Work memory per element of :meth:`_Elements.compute`, bytes (sets the chunk size).
+
+    The batched exponential of the augmented ``(2N + 1)`` (zoh) or ``(2N + 2)``
+    square matrices needs :data:`_WORK_COPIES` of them; with one ``A`` for all
+    elements only ``O(m)`` per element remains (``b_k`` and the scan's partial sums).
+    """
+    m = elems.m
+    ma = m + (1 if elems.hold == "zoh" else 2)
+    return 8 * m * 8 if elems.invariant else 2 * _WORK_COPIES * ma * ma * 8
+
+
+def _periodic_solution(elems: _Elements, cyc: CyclicSolution, timings: dict) -> PeriodicSolution:
+    """The :class:`PeriodicSolution` of the states ``cyc.Z`` (n, 2N) and the exponentials' record."""
+    n, N, period = elems.n, elems.N, elems.period
     return PeriodicSolution(
         t=np.arange(n) * (period / n), U=cyc.Z[:, :N].copy(), V=cyc.Z[:, N:].copy(),
         floquet_multipliers=cyc.multipliers, stable=cyc.stable, residual=cyc.residual,
-        monodromy=cyc.monodromy, method=cyc.method, hold=hold, period=period,
-        delta=float(elems.delta_used), approximant=approximant, degree=int(elems.degree),
+        monodromy=cyc.monodromy, method=cyc.method, hold=elems.hold, period=period,
+        delta=float(elems.delta_used), approximant=elems.approximant, degree=int(elems.degree),
         max_squarings=int(elems.max_squarings), n_exponentials=int(elems.n_exponentials),
         condition=cyc.condition, passes=cyc.passes, timings=MappingProxyType(timings))
 
@@ -832,14 +902,85 @@ def solve_cyclic(elems, per_element: float, *, method: str = "auto", memory_budg
     -------
     CyclicSolution
         States ``Z`` (n, m) at the element starts and the Floquet analysis.
+
+    Notes
+    -----
+    The steps: plan the chunks (:func:`_plan_chunks`); condense the cyclic
+    system into ``Phi`` and ``d`` (:func:`_condense`); the Floquet multipliers,
+    the condition of ``I - Phi`` and the choice of method
+    (:func:`_floquet_multipliers`, :func:`_balanced_condition`,
+    :func:`_check_resonance`, :func:`_choose_method`); then either solve for
+    ``z_0`` (:func:`_solve_z0`) and march the states (:func:`_march`), or solve
+    the cyclic system by sparse LU (:func:`_solve_by_cyclic_lu`); last the
+    normwise residual (:func:`_relative_residual`).
     """
     timings = {} if timings is None else timings
     t_start = time.perf_counter() if t_start is None else t_start
+    n, m = elems.n, elems.m
+    keep, seg = _plan_chunks(elems, per_element, memory_budget)
+
+    t0 = time.perf_counter()
+    pass1 = _condense(elems, keep, seg)
+    timings["exponentials"] = pass1.t_exp
+    timings["condensation"] = time.perf_counter() - t0 - pass1.t_exp
+
+    t0 = time.perf_counter()
+    _check_bounded(pass1, n)
+    mult = _floquet_multipliers(pass1.Phi)
+    rho = float(np.abs(mult).max())
+    ImP = np.eye(m) - pass1.Phi
+    Bal, dsc, condition = _balanced_condition(ImP)
+    ill_conditioned = _check_resonance(mult, condition, max_condition)
+    method = _choose_method(method, rho, ill_conditioned)
+    timings["floquet"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    Z = np.empty((n, m))
+    if method == "condensation":
+        z0 = _solve_z0(ImP, Bal, dsc, pass1.d)
+        z_end = _march(_second_pass(elems, pass1, keep), z0, Z)
+        rnorm = float(np.linalg.norm(z_end - Z[0]))  # only the closing row is not exact
+    else:
+        rnorm = _solve_by_cyclic_lu(elems, pass1, keep, seg, Z)
+    residual = _relative_residual(rnorm, pass1, Z)
+    timings["solve"] = time.perf_counter() - t0
+    timings["total"] = time.perf_counter() - t_start
+    log.info("periodic: n=%d m=%d method=%s rho=%.6g cond=%.3g residual=%.2e (%.3f s)",
+             n, m, method, rho, condition, residual, timings["total"])
+    return CyclicSolution(Z, mult, bool(rho < 1.0), float(residual), pass1.Phi, method,
+                          float(condition), 1 if keep else 2)
+
+
+# --------------------------------------------------------------------------
+# Steps of solve_cyclic
+# --------------------------------------------------------------------------
+
+def _plan_chunks(elems, per_element: float, memory_budget: float) -> tuple[bool, int]:
+    """Chunk size (set on ``elems.chunk``), whether to keep the ``A_k``, and the LU segment.
+
+    Parameters
+    ----------
+    elems : transition source
+        As in :func:`solve_cyclic`, with ``n`` elements of state size ``m``.
+    per_element : float
+        Work memory of ``elems.compute`` per element, bytes.
+    memory_budget : float
+        Bytes. A chunk's work fits the budget; the ``A_k`` (``n m**2 8`` bytes)
+        are kept when they fit half of it.
+
+    Returns
+    -------
+    keep : bool
+        Keep every chunk's ``A_k`` for the second pass (always when invariant);
+        otherwise they are recomputed.
+    seg : int
+        Elements per segment of the cyclic system solved by sparse LU: 1 (the
+        whole system) unless its LU would not fit the budget. Time-varying
+        segments lie inside one chunk or span whole chunks.
+    """
     n, m, invariant = elems.n, elems.m, elems.invariant
     chunk = max(1, min(n, int(memory_budget // per_element)))
     keep = invariant or n * m * m * 8 <= memory_budget / 2
-    # segments of the cyclic system solved by sparse LU in the unstable case: one
-    # element per segment (the whole cyclic system) unless its LU would not fit
     s_max = max(1, int(memory_budget // (48 * m * m)))
     seg = -(-n // s_max)
     if not invariant:
@@ -849,172 +990,429 @@ def solve_cyclic(elems, per_element: float, *, method: str = "auto", memory_budg
             seg = -(-seg // chunk) * chunk
     elems.chunk = chunk
     log.debug("solve_cyclic: n=%d m=%d chunk=%d keep=%s segment=%d", n, m, chunk, keep, seg)
+    return keep, seg
 
-    # ---- pass 1: exponentials, monodromy, particular part -------------------
-    t0 = time.perf_counter()
+
+@dataclass
+class _Condensed:
+    """The block-cyclic system condensed by the first pass (:func:`_condense`).
+
+    State units: those of the DOFs for the first ``m / 2`` entries, per second
+    for the rest.
+
+    Attributes
+    ----------
+    Phi : ndarray, shape (m, m)
+        Monodromy matrix ``A_{n-1} ... A_0``.
+    d : ndarray, shape (m,)
+        Particular part ``sum_k A_{n-1} ... A_{k+1} b_k``, the state after one
+        period from ``z_0 = 0``.
+    kept_A : list of ndarray
+        Per chunk, its ``A_k`` (L, m, m), or the one ``A`` (m, m) when
+        invariant; empty when not kept.
+    kept_b : list of ndarray, shape (L, m)
+        Per chunk, its ``b_k`` (always kept: ``O(n m)``).
+    seg_A, seg_b : list of ndarray, shapes (S, m, m) and (S, m)
+        Transfers of the sparse-LU segments (time-varying transitions only).
+    a_norm2 : float
+        ``sum_k ||A_k||_F**2``.
+    t_exp : float
+        Wall time of ``elems.compute``, s.
+    """
+
+    Phi: np.ndarray
+    d: np.ndarray
+    kept_A: list
+    kept_b: list
+    seg_A: list
+    seg_b: list
+    a_norm2: float
+    t_exp: float
+
+
+class _Segments:
+    """Transfers of consecutive segments of ``seg`` elements, collected chunk by chunk.
+
+    For time-varying transitions: a segment lies inside one chunk (all of them
+    when ``seg`` does not exceed the chunk) or spans whole chunks, whose
+    transfers are then composed until the segment is complete.
+    """
+
+    def __init__(self, seg: int, n: int, workers: int):
+        self.seg, self.n, self.workers = seg, n, workers
+        self.A: list[np.ndarray] = []
+        self.b: list[np.ndarray] = []
+        self._open_A = self._open_b = None
+        self._open_len = 0
+
+    def add(self, A: np.ndarray, bvec: np.ndarray, end: int) -> tuple[np.ndarray, np.ndarray]:
+        """Record the segments of a chunk and return the chunk's transfer.
+
+        Parameters
+        ----------
+        A : ndarray, shape (L, m, m)
+            Transitions of the chunk's elements.
+        bvec : ndarray, shape (L, m)
+            Their forced parts.
+        end : int
+            Index one past the chunk's last element.
+
+        Returns
+        -------
+        P : ndarray, shape (m, m)
+            ``A_{L-1} ... A_0``.
+        d : ndarray, shape (m,)
+            State after the chunk from a zero state.
+        """
+        L, seg = bvec.shape[0], self.seg
+        if seg == 1:
+            sA, sb = A, bvec
+        elif seg <= L:
+            sA, sb = _tree_groups(A, bvec, seg)
+        else:
+            sA, sb = None, None
+        Pc, dc = (_tree_parallel(A, bvec, self.workers) if sA is None
+                  else _tree_parallel(sA, sb, self.workers))
+        Pc, dc = Pc[0], dc[0]
+        if sA is not None:
+            self.A.append(sA)
+            self.b.append(sb)
+            return Pc, dc
+        if self._open_A is None:  # segment spans several chunks
+            self._open_A, self._open_b = Pc, dc
+        else:
+            with np.errstate(over="ignore", invalid="ignore"):
+                self._open_A, self._open_b = Pc @ self._open_A, Pc @ self._open_b + dc
+        self._open_len += L
+        if self._open_len >= seg or end == self.n:
+            self.A.append(self._open_A[None])
+            self.b.append(self._open_b[None])
+            self._open_A, self._open_b, self._open_len = None, None, 0
+        return Pc, dc
+
+
+def _condense(elems, keep: bool, seg: int) -> _Condensed:
+    """First pass: compute every chunk's transitions and condense the cyclic system.
+
+    Composes ``Phi = A_{n-1} ... A_0`` and ``d`` chunk by chunk (constant
+    ``A``: powers by :func:`_chain_invariant`; time-varying: pairwise products
+    in worker threads), collects the segment transfers for a sparse LU and
+    keeps what the second pass needs.
+
+    Parameters
+    ----------
+    elems : transition source
+        As in :func:`solve_cyclic` (``elems.chunk`` already planned).
+    keep : bool
+        Keep the ``A_k``.
+    seg : int
+        Elements per sparse-LU segment.
+
+    Returns
+    -------
+    _Condensed
+    """
+    m = elems.m
     Phi, dvec = np.eye(m), np.zeros(m)
     kept_A, kept_b = [], []
-    seg_A, seg_b = [], []          # segment transfers (time-varying case)
-    open_A, open_b, open_len = None, None, 0
+    segments = _Segments(seg, elems.n, elems.workers)
     a_norm2 = 0.0
     t_exp = 0.0
     for a, b in elems.bounds():
         te = time.perf_counter()
         A, bvec = elems.compute(a, b)
         t_exp += time.perf_counter() - te
-        L = b - a
         if A.ndim == 2:
             Pc, dc = _chain_invariant(A, bvec)
         else:
             a_norm2 += float(np.einsum("kij,kij->", A, A))
-            if seg == 1:
-                sA, sb = A, bvec
-            elif seg <= L:
-                sA, sb = _tree_groups(A, bvec, seg)
-            else:
-                sA, sb = None, None
-            Pc, dc = (_tree_parallel(A, bvec, elems.workers) if sA is None
-                      else _tree_parallel(sA, sb, elems.workers))
-            Pc, dc = Pc[0], dc[0]
-            if sA is not None:
-                seg_A.append(sA)
-                seg_b.append(sb)
-            else:  # segment spans several chunks
-                if open_A is None:
-                    open_A, open_b = Pc, dc
-                else:
-                    with np.errstate(over="ignore", invalid="ignore"):
-                        open_A, open_b = Pc @ open_A, Pc @ open_b + dc
-                open_len += L
-                if open_len >= seg or b == n:
-                    seg_A.append(open_A[None])
-                    seg_b.append(open_b[None])
-                    open_A, open_b, open_len = None, None, 0
-        with np.errstate(over="ignore", invalid="ignore"):  # checked below
+            Pc, dc = segments.add(A, bvec, b)
+        with np.errstate(over="ignore", invalid="ignore"):  # see _check_bounded
             Phi, dvec = Pc @ Phi, Pc @ dvec + dc
         if keep:
             kept_A.append(A)
         kept_b.append(bvec)
-    if invariant:
-        a_norm2 = n * float(np.sum(kept_A[0] * kept_A[0]))
-    timings["exponentials"] = t_exp
-    timings["condensation"] = time.perf_counter() - t0 - t_exp
+    if elems.invariant:
+        a_norm2 = elems.n * float(np.sum(kept_A[0] * kept_A[0]))
+    return _Condensed(Phi, dvec, kept_A, kept_b, segments.A, segments.b, a_norm2, t_exp)
 
-    # ---- Floquet analysis and resonance check -------------------------------
-    t0 = time.perf_counter()
-    if not (np.all(np.isfinite(Phi)) and np.all(np.isfinite(dvec))):
+
+def _check_bounded(pass1: _Condensed, n: int) -> None:
+    """Raise :class:`~kedfem.errors.UnboundedResponseError` if ``Phi`` or ``d`` overflowed.
+
+    Parameters
+    ----------
+    pass1 : _Condensed
+        The condensed system.
+    n : int
+        Number of time elements (for the message).
+    """
+    if not (np.all(np.isfinite(pass1.Phi)) and np.all(np.isfinite(pass1.d))):
         raise UnboundedResponseError(
             f"response unbounded: the transition over one cycle ({n} time elements) overflows "
             "floating point, so the largest Floquet multiplier exceeds about 1e300 -- a violent "
             "parametric instability or buckling at this speed, negative damping, or a diverging "
             "non-linear iterate; no periodic response is returned", elements=n)
+
+
+def _floquet_multipliers(Phi: np.ndarray) -> np.ndarray:
+    """Eigenvalues of the monodromy ``Phi`` (m, m), shape (m,) complex, by decreasing modulus."""
     mult = np.linalg.eigvals(Phi)
-    mult = mult[np.argsort(-np.abs(mult), kind="stable")]
-    rho = float(np.abs(mult).max())
-    ImP = np.eye(m) - Phi
-    # condition of I - Phi relative to the data it is formed from (I and Phi),
-    # in balanced coordinates: (1 + ||Phi||) / sigma_min(I - Phi). Scale-free
-    # measures such as sigma_max / sigma_min miss I - Phi ~ 0 (all multipliers 1).
+    return mult[np.argsort(-np.abs(mult), kind="stable")]
+
+
+def _balanced_condition(ImP: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """Balance ``I - Phi`` and estimate its condition relative to the data ``I`` and ``Phi``.
+
+    The condition is ``(1 + ||Phi||_2) / sigma_min(I - Phi)`` in balanced
+    coordinates. Scale-free measures such as ``sigma_max / sigma_min`` miss
+    ``I - Phi ~ 0`` (all multipliers 1).
+
+    Parameters
+    ----------
+    ImP : ndarray, shape (m, m)
+        ``I - Phi``.
+
+    Returns
+    -------
+    Bal : ndarray, shape (m, m)
+        ``D^-1 (I - Phi) D``.
+    dsc : ndarray, shape (m,)
+        The diagonal of ``D``.
+    condition : float
+        Condition estimate (``inf`` when singular).
+    """
     Bal, dsc = balance(ImP)
     try:
         smin = float(np.linalg.svd(Bal, compute_uv=False)[-1])
-        pnorm = float(np.linalg.norm(np.eye(m) - Bal, 2))
-        cond = (1.0 + pnorm) / smin if smin > 0 else math.inf
+        pnorm = float(np.linalg.norm(np.eye(ImP.shape[0]) - Bal, 2))
+        condition = (1.0 + pnorm) / smin if smin > 0 else math.inf
     except np.linalg.LinAlgError:
-        cond = math.inf
+        condition = math.inf
+    return Bal, dsc, condition
+
+
+def _check_resonance(mult: np.ndarray, condition: float, max_condition: float) -> bool:
+    """Whether ``I - Phi`` is ill-conditioned but not singular; a ResonanceError if singular.
+
+    A condition above ``max_condition`` with every multiplier farther than
+    :data:`RESONANCE_GAP` from 1 is not singularity: it comes from ``Phi``'s
+    non-normality (stiff modes with ``omega dt >> 1`` that no diagonal scaling
+    balances together). Condensation would lose digits in ``z_0``; the sparse LU
+    of the whole cyclic system is backward stable.
+
+    Parameters
+    ----------
+    mult : ndarray, shape (m,)
+        Floquet multipliers.
+    condition : float
+        Condition estimate of ``I - Phi`` (:func:`_balanced_condition`).
+    max_condition : float
+        Largest acceptable condition.
+
+    Returns
+    -------
+    bool
+        ``True`` when ``I - Phi`` is ill-conditioned but not singular.
+
+    Raises
+    ------
+    ResonanceError
+        Condition infinite, or above ``max_condition`` with a multiplier within
+        :data:`RESONANCE_GAP` of 1.
+    """
     near = mult[np.argmin(np.abs(mult - 1.0))]
-    ill_conditioned = False
-    if math.isfinite(cond) and cond > max_condition and abs(near - 1.0) > RESONANCE_GAP:
-        # every multiplier is well away from 1, so I - Phi is not singular: its
-        # size comes from Phi's non-normality (stiff modes with omega dt >> 1
-        # that no diagonal scaling balances together). Condensation would lose
-        # digits in z0; the sparse LU of the whole cyclic system is backward
-        # stable; its residual is reported in the solution.
-        ill_conditioned = True
+    if math.isfinite(condition) and condition > max_condition and abs(near - 1.0) > RESONANCE_GAP:
         log.info("I - Phi has condition %.3g but no Floquet multiplier near 1 (nearest at |mu - 1| = %.3g): "
-                 "solving the whole cyclic system by sparse LU", cond, abs(near - 1.0))
-    elif not math.isfinite(cond) or cond > max_condition:
+                 "solving the whole cyclic system by sparse LU", condition, abs(near - 1.0))
+        return True
+    if not math.isfinite(condition) or condition > max_condition:
         raise ResonanceError(
-            f"I - Phi is numerically singular (condition number {cond:.3g} > {max_condition:.3g}): "
+            f"I - Phi is numerically singular (condition number {condition:.3g} > {max_condition:.3g}): "
             f"Floquet multiplier {near.real:.15g}{near.imag:+.3g}j lies at |mu - 1| = "
             f"{abs(near - 1):.3g} from 1. The system has no unique periodic response: undamped "
             f"forcing at resonance, a free rigid-body mode (K singular with no damping), or an "
-            f"incompletely constrained mechanism.", multiplier=complex(near), condition=cond)
+            f"incompletely constrained mechanism.", multiplier=complex(near), condition=condition)
+    return False
+
+
+def _choose_method(method: str, rho: float, ill_conditioned: bool) -> str:
+    """``"condensation"`` or ``"cyclic-lu"``; warns of a parametric instability.
+
+    Parameters
+    ----------
+    method : str
+        Requested method; ``"auto"`` picks cyclic LU when the spectral radius
+        ``rho`` exceeds ``1 + INSTABILITY_TOL`` or ``ill_conditioned``.
+    rho : float
+        Largest Floquet multiplier modulus.
+    ill_conditioned : bool
+        From :func:`_check_resonance`.
+
+    Returns
+    -------
+    str
+    """
     unstable = rho > 1.0 + INSTABILITY_TOL
-    stable = rho < 1.0
     if method == "auto":
         method = "cyclic-lu" if (unstable or ill_conditioned) else "condensation"
-    if unstable:
+    if unstable:  # stacklevel: the caller of solve_cyclic
         warnings.warn(f"parametric instability: largest Floquet multiplier |mu| = {rho:.6g} > 1; "
                       f"the periodic solution exists but is not attracting (solved by {method})",
-                      InstabilityWarning, stacklevel=2)
-    timings["floquet"] = time.perf_counter() - t0
+                      InstabilityWarning, stacklevel=3)
+    return method
 
-    # ---- solve and propagate ------------------------------------------------
-    t0 = time.perf_counter()
-    Z = np.empty((n, m))
-    passes = 1 if keep else 2
-    bnorm2 = sum(float(np.sum(bb * bb)) for bb in kept_b)
-    if method == "condensation":
-        z0 = dsc * np.linalg.solve(Bal, dvec / dsc)
-        r = dvec - ImP @ z0  # one step of iterative refinement
-        z0 = z0 + dsc * np.linalg.solve(Bal, r / dsc)
-        z = z0
-        for ci, (a, b) in enumerate(elems.bounds()):
-            A, bvec = (kept_A[ci], kept_b[ci]) if keep else elems.compute(a, b)
-            z = _propagate(A, bvec, z, Z[a:b])
-        rnorm = float(np.linalg.norm(z - Z[0]))  # only the closing row is not exact
-    else:
-        if invariant:
-            A0 = kept_A[0]
-            bal = np.concatenate(kept_b, axis=0)
-            if seg == 1:
-                sA, sb = np.broadcast_to(A0, (n, m, m)), bal
-            else:
-                sA, sb = _segments_invariant(A0, bal, seg)
-        else:
-            sA, sb = np.concatenate(seg_A, axis=0), np.concatenate(seg_b, axis=0)
-        Zs, rnorm = _cyclic_lu(sA, sb)
+
+def _solve_z0(ImP: np.ndarray, Bal: np.ndarray, dsc: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Solve ``(I - Phi) z_0 = d`` in balanced coordinates with one step of iterative refinement.
+
+    Parameters
+    ----------
+    ImP : ndarray, shape (m, m)
+        ``I - Phi``.
+    Bal, dsc : ndarray, shapes (m, m) and (m,)
+        Its balanced form and scaling (:func:`_balanced_condition`).
+    d : ndarray, shape (m,)
+        Particular part.
+
+    Returns
+    -------
+    ndarray, shape (m,)
+        The periodic state at ``t = 0`` (DOF units, per s for velocities).
+    """
+    z0 = dsc * np.linalg.solve(Bal, d / dsc)
+    r = d - ImP @ z0
+    return z0 + dsc * np.linalg.solve(Bal, r / dsc)
+
+
+def _second_pass(elems, pass1: _Condensed, keep: bool):
+    """Chunks again, as ``(a, b, A, bvec)``: the kept transitions, or recomputed (streaming)."""
+    for ci, (a, b) in enumerate(elems.bounds()):
+        A, bvec = (pass1.kept_A[ci], pass1.kept_b[ci]) if keep else elems.compute(a, b)
+        yield a, b, A, bvec
+
+
+def _march(chunks, z0: np.ndarray, Z: np.ndarray) -> np.ndarray:
+    """March the states ``z_{k+1} = A_k z_k + b_k`` from ``z0`` over all chunks.
+
+    Parameters
+    ----------
+    chunks : iterable of (a, b, A, bvec)
+        From :func:`_second_pass`.
+    z0 : ndarray, shape (m,)
+        Initial state.
+    Z : ndarray, shape (n, m)
+        Filled with the states at the element starts.
+
+    Returns
+    -------
+    ndarray, shape (m,)
+        The state after the last element (``z_n``, equal to ``z_0`` up to the residual).
+    """
+    z = z0
+    for a, b, A, bvec in chunks:
+        z = _propagate(A, bvec, z, Z[a:b])
+    return z
+
+
+def _solve_by_cyclic_lu(elems, pass1: _Condensed, keep: bool, seg: int, Z: np.ndarray) -> float:
+    """Solve the block-cyclic system by sparse LU, on segments of ``seg`` elements.
+
+    With ``seg > 1`` the LU gives the states at the segment starts and the
+    states inside the segments are marched from them.
+
+    Parameters
+    ----------
+    elems : transition source
+    pass1 : _Condensed
+    keep : bool
+    seg : int
+        Elements per segment.
+    Z : ndarray, shape (n, m)
+        Filled with the states.
+
+    Returns
+    -------
+    float
+        2-norm of the residual of the block-cyclic system.
+    """
+    if elems.invariant:
+        A0 = pass1.kept_A[0]
+        ball = np.concatenate(pass1.kept_b, axis=0)
         if seg == 1:
-            Z[:] = Zs
+            sA, sb = np.broadcast_to(A0, (elems.n, elems.m, elems.m)), ball
         else:
-            passes = 1 if keep else 2
-            rn2 = rnorm ** 2
-            S = Zs.shape[0]
-            z_carry = None  # state carried across chunk boundaries inside a segment
-            for ci, (a, b) in enumerate(elems.bounds()):
-                A, bvec = (kept_A[ci], kept_b[ci]) if keep else elems.compute(a, b)
-                for s0 in range(a, b, seg):
-                    s1 = min(s0 + seg, b)
-                    k = s0 // seg
-                    Ak = A if A.ndim == 2 else A[s0 - a:s1 - a]
-                    if a <= k * seg and s1 == min((k + 1) * seg, n):
-                        z_end = _propagate(Ak, bvec[s0 - a:s1 - a], Zs[k], Z[s0:s1])
-                        rn2 += float(np.sum((z_end - Zs[(k + 1) % S]) ** 2))
-                    else:  # segment spanning chunks: continue from the stored state
-                        zs = Zs[k] if s0 == k * seg else z_carry
-                        z_carry = _propagate(Ak, bvec[s0 - a:s1 - a], zs, Z[s0:s1])
-                        if s1 == min((k + 1) * seg, n):
-                            rn2 += float(np.sum((z_carry - Zs[(k + 1) % S]) ** 2))
-            rnorm = math.sqrt(rn2)
-    denom = math.sqrt(a_norm2 + n * m) * float(np.linalg.norm(Z)) + math.sqrt(bnorm2)
-    residual = rnorm / denom if denom > 0 else 0.0
-    timings["solve"] = time.perf_counter() - t0
-    timings["total"] = time.perf_counter() - t_start
-    log.info("periodic: n=%d m=%d method=%s rho=%.6g cond=%.3g residual=%.2e (%.3f s)",
-             n, m, method, rho, cond, residual, timings["total"])
-    return CyclicSolution(Z, mult, bool(stable), float(residual), Phi, method, float(cond), passes)
+            sA, sb = _segments_invariant(A0, ball, seg)
+    else:
+        sA, sb = np.concatenate(pass1.seg_A, axis=0), np.concatenate(pass1.seg_b, axis=0)
+    Zs, rnorm = _cyclic_lu(sA, sb)
+    if seg == 1:
+        Z[:] = Zs
+        return rnorm
+    return _march_segments(_second_pass(elems, pass1, keep), Zs, seg, Z, rnorm)
 
 
-solve.__doc__ = (_solve.__doc__ or "") + """
-    Notes
-    -----
-    All linear algebra runs on one BLAS thread per kedfem worker: the matrices
-    are small (2N up to a few hundred) and OpenBLAS's own threading of them was
-    2-60x slower than one thread whenever the other cores were busy (measured
-    on a shared 2-core machine, ``benchmarks/peers.py``).
-"""
+def _march_segments(chunks, Zs: np.ndarray, seg: int, Z: np.ndarray, rnorm: float) -> float:
+    """March the states inside the segments from their starts ``Zs``; add the closing residuals.
 
+    Parameters
+    ----------
+    chunks : iterable of (a, b, A, bvec)
+        From :func:`_second_pass`.
+    Zs : ndarray, shape (S, m)
+        States at the segment starts (elements ``0, seg, 2 seg, ...``).
+    seg : int
+        Elements per segment.
+    Z : ndarray, shape (n, m)
+        Filled with the states.
+    rnorm : float
+        Residual 2-norm of the segment system.
+
+    Returns
+    -------
+    float
+        Residual 2-norm including the mismatch of each segment's end with the next start.
+    """
+    n = Z.shape[0]
+    S = Zs.shape[0]
+    rn2 = rnorm ** 2
+    z_carry = None  # state carried across chunk boundaries inside a segment
+    for a, b, A, bvec in chunks:
+        for s0 in range(a, b, seg):
+            s1 = min(s0 + seg, b)
+            k = s0 // seg
+            Ak = A if A.ndim == 2 else A[s0 - a:s1 - a]
+            if a <= k * seg and s1 == min((k + 1) * seg, n):
+                z_end = _propagate(Ak, bvec[s0 - a:s1 - a], Zs[k], Z[s0:s1])
+                rn2 += float(np.sum((z_end - Zs[(k + 1) % S]) ** 2))
+            else:  # segment spanning chunks: continue from the stored state
+                zs = Zs[k] if s0 == k * seg else z_carry
+                z_carry = _propagate(Ak, bvec[s0 - a:s1 - a], zs, Z[s0:s1])
+                if s1 == min((k + 1) * seg, n):
+                    rn2 += float(np.sum((z_carry - Zs[(k + 1) % S]) ** 2))
+    return math.sqrt(rn2)
+
+
+def _relative_residual(rnorm: float, pass1: _Condensed, Z: np.ndarray) -> float:
+    """Normwise relative residual ``||r|| / (||Acyc||_F ||z|| + ||c||)`` of the cyclic system.
+
+    Parameters
+    ----------
+    rnorm : float
+        ``||r||_2``.
+    pass1 : _Condensed
+        For ``sum ||A_k||_F**2`` and the ``b_k``.
+    Z : ndarray, shape (n, m)
+        The states.
+
+    Returns
+    -------
+    float
+    """
+    n, m = Z.shape
+    bnorm2 = sum(float(np.sum(bb * bb)) for bb in pass1.kept_b)
+    denom = math.sqrt(pass1.a_norm2 + n * m) * float(np.linalg.norm(Z)) + math.sqrt(bnorm2)
+    return rnorm / denom if denom > 0 else 0.0
 
 
 def _overflow_is_checked(fn):

@@ -1,13 +1,14 @@
 """A constant torque on a member at a joint: the worked example of an effect in its own module.
 
 An effect in its own module subclasses :class:`kedfem.fe.effects.Effect`, says
-what it adds, and returns its q-space terms at the instants it is given;
+what it adds, and overrides the hooks it needs (here ``terms``: q-space terms at
+the instants of a chunk of the cycle; :mod:`kedfem.fe.effects.base` lists them);
 ``register_effect`` puts it in the registry, after which scenes and scene files
 name it like any built-in effect::
 
     import kedfem as kf
     from kedfem.fe.effects import register_effect
-    from kedfem.fe.joint_torque import JointTorque
+    from kedfem.fe.effects.joint_torque import JointTorque
 
     register_effect(JointTorque("brake", member="follower", joint="B", torque=5.0))
     res = kf.solve(kf.Scene(m, effects=("inertia", "coupling", "axial_stiffening", "brake")))
@@ -25,8 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .effects import Effect
-from ..errors import InputError
+from ...errors import InputError
+from .base import Chunk, Effect
 
 __all__ = ["JointTorque"]
 
@@ -60,7 +61,7 @@ class JointTorque(Effect):
                          f"{self.joint!r} (a clamped end or a driven crank's pivot carries none; rotation "
                          f"DOFs: {', '.join(x for x in labels if 'theta@' in x or x.endswith('.phi'))})")
 
-    def terms(self, asm, motion) -> dict:
-        Q = np.zeros((motion.n, asm.model.n_dof))
+    def terms(self, asm, chunk: Chunk) -> dict:
+        Q = np.zeros((chunk.motion.n, asm.model.n_dof))
         Q[:, self.dof(asm.model)] = float(self.torque)
         return {"Q": Q}

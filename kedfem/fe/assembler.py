@@ -1,0 +1,494 @@
+"""The assembler: the structure and the chosen effects of a scene, at any set of instants.
+
+For a chunk of instants it builds the rigid-body kinematics of the beams'
+frames, asks the structure (:mod:`kedfem.fe.structure`) and each chosen effect
+(:mod:`kedfem.fe.effects`) for their element terms, pushes them through the
+constraint maps of :class:`kedfem.fe.model.FEModel` (``x = E q + p``, with the
+transport of moving maps), scatters them into q-space and adds the damping.
+State-dependent effects give their tangents about a trial response the same way.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import KedError
+from ..model import elements as el
+from ..motion.kinematics import Motion
+from ..motion.kinetostatics import JointForces, kinetostatics, link_axial_force
+from .model import FEModel
+from .damping import ModalDamping, Rayleigh, check_damping, damping_matrix
+from . import effects as registry
+from .effects.base import BeamKinematics, Chunk, Effect, GroupTerms, StateTerms, slice_motion
+from .structure import beam_coupling, beam_mass, beam_stiffness, objective_rates, spring_axes
+
+__all__ = ["Assembler", "SystemTerms", "slice_motion"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class SystemTerms:
+    """Assembled q-space terms at ``nt`` time nodes.
+
+    ``M, C, K``: (nt, N, N) [kg, N s/m, N/m]; ``Q``: (nt, N) [N].
+    """
+
+    M: np.ndarray
+    C: np.ndarray
+    K: np.ndarray
+    Q: np.ndarray
+
+
+class Assembler:
+    """Assemble the structure and the effects of a scene at any set of time nodes.
+
+    Parameters
+    ----------
+    model : FEModel
+        DOF map and element groups.
+    motion : Motion
+        Rigid-body motion over the cycle (all time nodes).
+    effects : sequence of str
+        Effects to apply (see :data:`kedfem.fe.effects.EFFECTS`).
+    damping : Rayleigh or ModalDamping or None
+        Damping model.
+    frame : bool
+        Co-moving-frame formulation for frequency analysis: each link in its
+        own rotating frame (Coriolis ``2 w m_s``, ``a m_s``, ``-w^2 m_t``),
+        rigid members in translating frames; the terms of the time
+        derivatives of the frame transformations are left out. ``False``
+        (default) is the inertial-frame formulation the response is solved in.
+    damping_field : kedfem.fe.modal_damping.DampingField, optional
+        With :class:`ModalDamping`: ``C(t)`` interpolated over the cycle
+        instead of an eigenproblem per instant (built once per solve from the
+        same model and cycle).
+    """
+
+    def __init__(self, model: FEModel, motion: Motion, effects=(), damping=None, frame=False,
+                 damping_field=None):
+        self.model = model
+        self.mech = model.mech
+        self.motion = motion
+        self.chosen = registry.chosen(effects)
+        self.effects = tuple(e.name for e in self.chosen)
+        self.damping = check_damping(damping)
+        self.frame = bool(frame)
+        self.damping_field = damping_field
+        # how the chosen effects change the assembler's own work (kedfem.fe.effects.base)
+        self.weight = any(e.weight for e in self.chosen)
+        self.transport = any(e.transports_maps for e in self.chosen) and not self.frame
+        self.offset_inertia = any(e.offset_inertia for e in self.chosen)
+        self.carries_axial_forces = any(e.carries_axial_forces for e in self.chosen)
+        self._forces: JointForces | None = None
+        self._axial: np.ndarray | None = None
+        b = model.beam
+        self.beam_member = np.array([motion.member_names.index(b.links[i]) for i in b.link], dtype=int)
+        self._beam_joint_a = np.array([motion.joint_names.index(self.mech.links[b.links[i]].a)
+                                       for i in b.link], dtype=int)
+        if self.carries_axial_forces and "axial_stiffening" in self.effects and b.L.size:
+            log.info("geometric_nonlinearity carries the axial forces of the links: the links' k_G of "
+                     "axial_stiffening is not added twice (rigid members keep theirs)")
+        self._k_local = beam_stiffness(b)
+        self._m_local = beam_mass(b)
+        self._coupling = None
+        self._full_maps: dict = {}  # group maps over the whole cycle, for the state terms
+        self._full_forms = None     # the entity forms they are built from
+        self._forms = None
+
+    # ------------------------------------------------------------- properties
+    @property
+    def state_dependent(self) -> bool:
+        """True if some chosen effect depends on the elastic state (needs iteration)."""
+        return any(e.state_dependent(self.mech) for e in self.chosen)
+
+    @property
+    def coupling_matrices(self) -> tuple[np.ndarray, np.ndarray]:
+        """The beams' ``m_t`` and ``m_s``, each (n_el, 6, 6) [kg] (:func:`kedfem.fe.structure.beam_coupling`)."""
+        if self._coupling is None:
+            self._coupling = beam_coupling(self.model.beam)
+        return self._coupling
+
+    def member_inertia(self, member: str) -> tuple[float, float]:
+        """Mass [kg] and centroidal moment of inertia [kg m^2] of a rigid member or body."""
+        m = self.mech.links[member] if member in self.mech.links else self.mech.bodies[member]
+        return m.mass, m.J
+
+    def objective_beta(self) -> float:
+        """Rayleigh's stiffness coefficient [s] when the beams take it on their strain rates.
+
+        In the inertial-frame formulation (not for the co-moving frequency
+        analysis, which keeps ``beta K`` on its DOFs).
+        """
+        d = self.damping
+        return float(d.beta) if isinstance(d, Rayleigh) and d.beta and not self.frame else 0.0
+
+    # ------------------------------------------------------------ kinetostatics
+    def joint_forces(self) -> JointForces:
+        """Kinetostatic joint forces over the whole cycle, with the chosen effects' loads (computed once)."""
+        if self._forces is None:
+            mo = self.motion
+            loads = moments = None
+            hooks = [e for e in self.chosen if type(e).joint_loads is not Effect.joint_loads]
+            if hooks:
+                loads = np.zeros((mo.n, len(mo.joint_names), 2))
+                moments = np.zeros((mo.n, len(mo.member_names)))
+                for e in hooks:
+                    e.joint_loads(self, mo, loads, moments)
+            self._forces = kinetostatics(self.mech, mo, inertia=True, gravity=self.weight,
+                                         joint_loads=loads, member_moments=moments)
+        return self._forces
+
+    def _beam_kinematics(self, mo: Motion) -> BeamKinematics | None:
+        """Kinematics of the beam elements' frames at the instants of ``mo`` (None without beams)."""
+        if not self.model.beam.L.size:
+            return None
+        th = mo.theta[:, self.beam_member]
+        T = el.rotation_blocks(th)
+        return BeamKinematics(th, mo.omega[:, self.beam_member], mo.alpha[:, self.beam_member],
+                              mo.a[:, self._beam_joint_a], T, np.swapaxes(T, -1, -2),
+                              np.swapaxes(T[..., 0:2, 0:2], -1, -2))
+
+    # ------------------------------------------------------------ structure
+    def _structure_terms(self, chunk: Chunk, damped: bool = True) -> None:
+        """Mass and stiffness of beams, rigid members, point masses and springs (always assembled).
+
+        ``Ks`` is the structural stiffness (Rayleigh's ``beta K``, modal
+        damping); with ``damped`` and Rayleigh ``beta`` the beams take ``beta k``
+        on their objective strain rates instead of on their DOFs.
+        """
+        acc, bk = chunk.acc, chunk.beam
+        if bk is not None:
+            acc.add("beam", "M", bk.Tt @ self._m_local @ bk.T)
+            acc.add("beam", "K", bk.Tt @ self._k_local @ bk.T)
+            beta = self.objective_beta() if damped else 0.0
+            if beta:
+                # stiffness-proportional damping of the elements' strain rates in their own
+                # turning frame: f = beta k (T x' + T' x), T' x = w S^T (T x) on the translations
+                # (the transport of the DOF maps follows in _transform); not of rigid rotation
+                Cb, Kb = objective_rates(beta * self._k_local, bk.T, bk.Tt, bk.omega[..., None, None])
+                acc.add("beam", "C", Cb)
+                acc.add("beam", "K", Kb)
+            else:
+                acc.add("beam", "Ks", bk.Tt @ self._k_local @ bk.T)
+        for gname, masses in (("rigid", [self.member_inertia(m) for m in self.model.groups["rigid"].meta.get("members", ())]),
+                              ("pmass", self._point_inertia())):
+            if masses:
+                M = np.zeros((1, len(masses), 3, 3))
+                M[0, :, 0, 0] = M[0, :, 1, 1] = [m for m, _J in masses]
+                M[0, :, 2, 2] = [J for _m, J in masses]
+                acc.add(gname, "M", M)
+        g = self.model.groups["spring"]
+        if g.n:
+            items = g.meta["items"]
+            B = spring_axes(items)
+            k = np.array([s.k for s in items])
+            Kx = (k[:, None, None] * (B[:, :, None] * B[:, None, :]))[None]
+            acc.add("spring", "K", Kx)
+            acc.add("spring", "Ks", Kx)
+        g = self.model.groups["tspring"]
+        if g.n:
+            kt = np.array([it[1].k if it[0] == "spring" else it[1].torsional_stiffness for it in g.meta["items"]])
+            Kt = (kt[:, None, None] * np.array([[1.0, -1.0], [-1.0, 1.0]]))[None]
+            acc.add("tspring", "K", Kt)
+            acc.add("tspring", "Ks", Kt)
+
+    def _point_inertia(self) -> list[tuple[float, float]]:
+        """Mass and moment of inertia of the point masses (J only where an elastic rotation carries it)."""
+        g = self.model.groups["pmass"]
+        return [(p.mass, p.J if g.ids[k, 1] >= 0 else 0.0) for k, p in enumerate(g.meta.get("items", ()))]
+
+    def beam_axial_kinetostatic(self) -> np.ndarray:
+        """Mean kinetostatic axial force per beam element, shape (n, n_el) [N]."""
+        if self._axial is None:
+            b = self.model.beam
+            forces = self.joint_forces()
+            out = np.zeros((self.motion.n, b.L.size))
+            for name in b.links:
+                if not self.mech.links[name].kinematic:
+                    continue  # a redundant member takes no kinetostatic force
+                sl = self.model.link_elements(name)
+                s1 = b.s1[sl]
+                out[:, sl] = link_axial_force(self.mech, self.motion, forces, name, s1, s1 + b.L[sl],
+                                              gravity=self.weight)
+            self._axial = out
+        return self._axial
+
+    # ------------------------------------------------------------ element terms
+    def _transform(self, gname, acc: GroupTerms, mo, nt):
+        model = self.model
+        M = acc.get(gname, "M")
+        C = acc.get(gname, "C")
+        K = acc.get(gname, "K")
+        Ks = acc.get(gname, "Ks")
+        Q = acc.get(gname, "Q")
+        if M is None and C is None and K is None and Q is None:
+            return None
+        gm = model.group_map(gname, mo, self._forms)
+        E = gm.E
+        Et = np.swapaxes(E, -1, -2)
+        out = {}
+
+        def full(x):
+            return np.broadcast_to(x, (nt,) + x.shape[1:])
+
+        if M is not None:
+            out["M"] = full(Et @ M @ E)
+        Cq = Et @ C @ E if C is not None else None
+        Kq = Et @ K @ E if K is not None else None
+        if Ks is not None:
+            out["Ks"] = full(Et @ Ks @ E)
+        transport = self.transport and gm.E1 is not None
+        if transport:
+            if M is not None:
+                add = 2.0 * Et @ M @ gm.E1
+                Cq = add if Cq is None else Cq + add
+                add = Et @ M @ gm.E2
+                Kq = add if Kq is None else Kq + add
+            if C is not None:
+                add = Et @ C @ gm.E1
+                Kq = add if Kq is None else Kq + add
+        if Cq is not None:
+            out["C"] = full(Cq)
+        if Kq is not None:
+            out["K"] = full(Kq)
+        Qx = Q
+        if gm.p is not None and not self.frame:
+            extra = 0.0
+            if K is not None:
+                extra = extra + K @ gm.p[..., None]
+            if C is not None:
+                extra = extra + C @ gm.p1[..., None]
+            if M is not None and self.offset_inertia:
+                extra = extra + M @ gm.p2[..., None]
+            if not isinstance(extra, float):
+                Qx = -extra[..., 0] if Qx is None else Qx - extra[..., 0]
+        if Qx is not None:
+            out["Q"] = full((Et @ Qx[..., None])[..., 0])
+        return out
+
+    def _chunk(self, idx) -> Chunk:
+        """The chunk of instants ``idx`` with the structure's and the chosen effects' element terms."""
+        mo = slice_motion(self.motion, idx)
+        chunk = Chunk(mo, idx, self._beam_kinematics(mo))
+        self._structure_terms(chunk)
+        for e in self.chosen:
+            e.element_terms(self, chunk)
+        return chunk
+
+    def _to_q(self, chunk: Chunk) -> dict:
+        """q-space terms of every element group of ``chunk``, by group name."""
+        mo, nt = chunk.motion, chunk.idx.size
+        dyn = self.model.has_moving_maps() or self.model.has_offsets()
+        self._forms = self.model.entity_forms(mo) if dyn else None
+        try:
+            out = {g: self._transform(g, chunk.acc, mo, nt) for g in self.model.groups}
+        finally:
+            self._forms = None
+        return {g: o for g, o in out.items() if o}
+
+    def _effect_terms(self, chunk: Chunk):
+        """The chosen effects' q-space terms (``Effect.terms``): (key, array) pairs."""
+        for e in self.chosen:
+            for key, val in (e.terms(self, chunk) or {}).items():
+                if key not in ("M", "C", "K", "Q"):
+                    raise KedError(f"effect {e.name!r}: terms() returned an unknown key {key!r}")
+                yield key, val
+
+    def system(self, idx=None) -> SystemTerms:
+        """Linear (state-independent) terms at time nodes ``idx``.
+
+        Parameters
+        ----------
+        idx : array_like of int, optional
+            Time node indices; default all.
+
+        Returns
+        -------
+        SystemTerms
+            ``M, C, K`` (nt, N, N) and ``Q`` (nt, N) in q-space.
+        """
+        idx = np.arange(self.motion.n) if idx is None else np.asarray(idx)
+        nt, N = idx.size, self.model.n_dof
+        chunk = self._chunk(idx)
+        groups = self._to_q(chunk)
+        field = self.damping_field if isinstance(self.damping, ModalDamping) else None
+        keys = ("M", "C", "K") if field is not None or self.damping is None else ("M", "C", "K", "Ks")
+        tot = {k: np.zeros((nt, N, N)) for k in keys}
+        tot["Q"] = np.zeros((nt, N))
+        for gname, out in groups.items():
+            for key in keys:
+                if key in out:
+                    self.model.scatter_matrix(gname, out[key], out=tot[key])
+            if "Q" in out:
+                self.model.scatter_vector(gname, out["Q"], out=tot["Q"])
+        for key, val in self._effect_terms(chunk):
+            tot[key] += val
+        if field is not None:
+            tot["C"] += field.at(chunk.motion.t)
+        elif self.damping is not None:
+            tot["C"] += self.damping_matrix(tot["M"], tot["Ks"])
+        return SystemTerms(tot["M"], tot["C"], tot["K"], tot["Q"])
+
+    def sparse_system(self, node: int = 0):
+        """Terms at one time node as scipy.sparse CSR matrices (COO -> CSR scatter).
+
+        Returns
+        -------
+        M, C, K : scipy.sparse.csr_matrix, shape (N, N)
+        Q : ndarray, shape (N,)
+        """
+        N = self.model.n_dof
+        chunk = self._chunk(np.array([node]))
+        tot = {k: sp.csr_matrix((N, N)) for k in ("M", "C", "K", "Ks")}
+        Q = np.zeros(N)
+        for gname, out in self._to_q(chunk).items():
+            for key in tot:
+                if key in out:
+                    tot[key] = tot[key] + self.model.scatter_sparse(gname, out[key][0])
+            if "Q" in out:
+                Q += self.model.scatter_vector(gname, out["Q"])[0]
+        for key, val in self._effect_terms(chunk):
+            if key == "Q":
+                Q += val[0]
+            else:
+                tot[key] = tot[key] + sp.csr_matrix(val[0])
+        if isinstance(self.damping, Rayleigh):
+            tot["C"] = tot["C"] + self.damping_matrix(tot["M"], tot["Ks"])
+        elif self.damping is not None:
+            Cd = self.damping_matrix(tot["M"].toarray()[None], tot["Ks"].toarray()[None])[0]
+            tot["C"] = tot["C"] + sp.csr_matrix(Cd)
+        return tot["M"], tot["C"], tot["K"], Q
+
+    def structural(self, idx=None):
+        """Mass and structural stiffness only (no effects, no damping), each (nt, N, N) [kg, N/m]."""
+        idx = np.arange(self.motion.n) if idx is None else np.asarray(idx)
+        mo = slice_motion(self.motion, idx)
+        chunk = Chunk(mo, idx, self._beam_kinematics(mo))
+        self._structure_terms(chunk, damped=False)
+        nt, N = idx.size, self.model.n_dof
+        M = np.zeros((nt, N, N))
+        Ks = np.zeros((nt, N, N))
+        for gname, out in self._to_q(chunk).items():
+            if "M" in out:
+                self.model.scatter_matrix(gname, out["M"], out=M)
+            if "Ks" in out:
+                self.model.scatter_matrix(gname, out["Ks"], out=Ks)
+        return M, Ks
+
+    def axial_share(self, idx=None) -> np.ndarray:
+        """Share of each DOF's diagonal structural stiffness that the links' axial stiffness carries.
+
+        ``diag(K_axial) / diag(K_structural)`` at time nodes ``idx`` (default
+        all), shape (nt, N): near 1 for the directions a link's axial
+        stiffness holds (its interior axial translations, a slider's travel,
+        a joint translation along a link, a rigid member's rotation resisted
+        by links pushing and pulling on it), near 0 for bending.
+        """
+        if idx is None:
+            idx = np.arange(self.motion.n)
+        idx = np.asarray(idx)
+        b = self.model.beam
+        M, Ks = self.structural(idx)
+        d_all = np.diagonal(Ks, axis1=-2, axis2=-1)
+        if not b.L.size:
+            return np.zeros_like(d_all)
+        mo = slice_motion(self.motion, idx)
+        T = self._beam_kinematics(mo).T
+        ka = el.frame_stiffness(b.L, b.EA, np.zeros_like(b.EI))  # EI = 0: the axial part alone
+        Kx = np.swapaxes(T, -1, -2) @ ka @ T
+        dyn = self.model.has_moving_maps() or self.model.has_offsets()
+        gm = self.model.group_map("beam", mo, self.model.entity_forms(mo) if dyn else None)
+        E = gm.E
+        Kq = np.broadcast_to(np.swapaxes(E, -1, -2) @ Kx @ E, (idx.size,) + (E.shape[1], E.shape[3], E.shape[3]))
+        d_ax = np.diagonal(self.model.scatter_matrix("beam", Kq), axis1=-2, axis2=-1)
+        return d_ax / np.where(d_all > 0, d_all, 1.0)
+
+    def damping_matrix(self, M, Ks):
+        """q-space damping of the scene's damping model from mass and structural stiffness
+        (:func:`kedfem.fe.damping.damping_matrix`), (nt, N, N) [N s/m]."""
+        return damping_matrix(self.damping, M, Ks, self.model.mech.name, self.model.dof_labels)
+
+    # ----------------------------------------------------------- state terms
+    def _state_map(self, gname, mo):
+        """Group map of ``gname`` over ``mo``; kept when ``mo`` is the whole cycle.
+
+        The non-linear iteration evaluates the state terms over the same cycle
+        at every iterate: the constraint maps (and the entity forms they are
+        built from) depend on the motion only, so they are built once.
+        """
+        if mo is not self.motion:
+            return self.model.group_map(gname, mo)
+        gm = self._full_maps.get(gname)
+        if gm is None:
+            if self._full_forms is None and (self.model.has_moving_maps() or self.model.has_offsets()):
+                self._full_forms = self.model.entity_forms(mo)
+            gm = self._full_maps[gname] = self.model.group_map(gname, mo, self._full_forms)
+        return gm
+
+    def element_state(self, gname, mo, U, V=None):
+        """Element DOFs of a group for the trial response ``U, V``.
+
+        Returns ``x = E q + p`` (total elastic, incl. prescribed offsets), its
+        rate ``x'`` (None without ``V``), the part ``E q`` that the unknowns
+        carry, and the group map; arrays (nt, n_el, d).
+        """
+        gm = self._state_map(gname, mo)
+        xq = gm.apply(U)  # (nt, n_el, d)
+        x = xq + gm.p if gm.p is not None else xq
+        xd = None
+        if V is not None:
+            xd = gm.apply(V)
+            if gm.E1 is not None:
+                xd = xd + gm.apply(U, E=gm.E1)
+            if gm.p1 is not None:
+                xd = xd + gm.p1
+        return x, xd, xq, gm
+
+    def state_terms(self, U, V, idx=None):
+        """State-dependent terms of the chosen effects for the trial response ``U, V`` (n, N).
+
+        Returns
+        -------
+        dC : ndarray, shape (n, N, N) or None
+            Tangent damping of the state-dependent effects (velocity-dependent friction).
+        dK : ndarray, shape (n, N, N) or None
+            Tangent stiffness of the state-dependent effects.
+        dQ : ndarray, shape (n, N) or None
+            Matching load, ``-f_nl(x) + K_nl x + C_nl x'`` so that a fixed point of
+            the linear solve satisfies the non-linear equations (Newton's
+            linearisation about the trial response). All None if no chosen
+            effect depends on the state.
+        """
+        if idx is None:
+            idx = np.arange(self.motion.n)
+            mo = self.motion  # the whole cycle: the group maps are reused across iterates
+        else:
+            mo = slice_motion(self.motion, idx)
+        active = [e for e in self.chosen if e.state_dependent(self.mech)]
+        if not active:
+            return None, None, None
+        nt, N = len(idx), self.model.n_dof
+        out = StateTerms(np.zeros((nt, N, N)), np.zeros((nt, N)))
+        for e in active:
+            e.state_terms(self, mo, U, V, out)
+        return out.dC, out.dK, out.dQ
+
+    def apply_state(self, gname, gm, Kx, Qx, dK, dQ, right=None) -> None:
+        """Add element-coordinate state terms of group ``gname`` to q-space arrays.
+
+        ``dK += E^T Kx R`` (``R = right`` or ``E``), ``dQ += E^T Qx``; ``Kx``
+        (nt, n_el, d, d) and ``Qx`` (nt, n_el, d) may be None.
+        """
+        E = gm.E
+        Et = np.swapaxes(E, -1, -2)
+        R = E if right is None else right
+        nt = dK.shape[0]
+        if Kx is not None:
+            dK += self.model.scatter_matrix(gname, np.broadcast_to(Et @ Kx @ R, (nt,) + (E.shape[1], E.shape[3], E.shape[3])))
+        if Qx is not None:
+            dQ += self.model.scatter_vector(gname, np.broadcast_to((Et @ Qx[..., None])[..., 0], (nt,) + (E.shape[1], E.shape[3])))

@@ -1,0 +1,77 @@
+"""``loads``: declared constant loads and friction forces.
+
+A :class:`kedfem.model.mechanism.Load` is a constant force on a joint. A
+friction force (tanh-regularised Coulomb law along an axis) follows either the
+rigid-body velocity of its joint (``follows="rigid"``: a load) or the total
+velocity (``follows="total"``: iterated, with the tangent damping ``c_t n n^T``).
+Both load the kinetostatics too (docs/theory.md section 3).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...model.mechanism import Load
+from ...motion.kinematics import Motion
+from .base import Chunk, Effect, StateTerms
+
+__all__ = ["Loads", "rigid_friction"]
+
+
+def rigid_friction(mo: Motion, f) -> np.ndarray:
+    """Friction force [N] (nt, 2) on the rigid-body velocity of its joint (tanh-regularised sign)."""
+    n = np.asarray(f.axis)
+    vrel = mo.v[:, mo.joint_names.index(f.joint)] @ n - f.reference_speed
+    return -(f.force * np.tanh(vrel / f.smoothing))[:, None] * n
+
+
+@dataclass(frozen=True)
+class Loads(Effect):
+    """Declared external loads and friction."""
+
+    name: str = "loads"
+    adds: str = "declared external loads and friction"
+
+    def state_dependent(self, mech) -> bool:
+        return any(f.follows == "total" for f in mech.frictions.values())
+
+    def joint_loads(self, asm, motion: Motion, loads: np.ndarray, moments: np.ndarray) -> None:
+        for ld in asm.mech.loads.values():
+            loads[:, motion.joint_names.index(ld.joint)] += np.asarray(ld.force)
+        for f in asm.mech.frictions.values():
+            loads[:, motion.joint_names.index(f.joint)] += rigid_friction(motion, f)
+
+    def element_terms(self, asm, chunk: Chunk) -> None:
+        g = asm.model.groups["load"]
+        if not g.n:
+            return
+        Q = np.zeros((chunk.motion.n, g.n, 2))
+        for k, it in enumerate(g.meta["items"]):
+            if isinstance(it, Load):
+                Q[:, k] = it.force
+            elif it.follows == "rigid":
+                Q[:, k] = rigid_friction(chunk.motion, it)
+        chunk.acc.add("load", "Q", Q)
+
+    def state_terms(self, asm, motion: Motion, U, V, out: StateTerms) -> None:
+        """Friction on the total velocity: force and its tangent damping ``c_t n n^T``."""
+        if not self.state_dependent(asm.mech):
+            return
+        items = asm.model.groups["load"].meta["items"]
+        x, xd, _xq, gm = asm.element_state("load", motion, U, V)
+        xdq = gm.apply(V)  # the part of x' carried by q'
+        Qx = np.zeros(x.shape)
+        Cx = np.zeros(x.shape + (x.shape[-1],))
+        for k, it in enumerate(items):
+            if getattr(it, "follows", None) != "total":
+                continue
+            n = np.asarray(it.axis)
+            vrel = (motion.v[:, motion.joint_names.index(it.joint)] + xd[:, k]) @ n - it.reference_speed
+            th = np.tanh(vrel / it.smoothing)
+            ct = it.force / it.smoothing * (1.0 - th**2)  # d(force)/d(speed) >= 0
+            Cx[:, k] = ct[:, None, None] * np.outer(n, n)
+            # Newton: F(v_i) + c_t (v - v_i) -> load -F(v_i) + c_t (q'-part of v_i)
+            Qx[:, k] = (-(it.force * th) + ct * (xdq[:, k] @ n))[:, None] * n
+        asm.apply_state("load", gm, Cx, Qx, out.damping(), out.dQ)
