@@ -306,12 +306,12 @@ def frequencies_over_cycle(model: FEModel, motion: Motion, scene, U, V, n_modes:
     Frequencies
         Arrays (nt, k) [Hz].
     """
-    from ..solvers.periodic import _state_matrix
+    from ..solvers.periodic import state_matrix
     S, K = _about_state(model, motion, scene, U, V, idx)
     k = min(n_modes, model.n_dof)
     fm = eig_frequencies(S.M, K, k)
     Minv = np.linalg.inv(S.M)
-    lam = np.linalg.eigvals(_state_matrix(Minv @ K, Minv @ S.C))
+    lam = np.linalg.eigvals(state_matrix(Minv @ K, Minv @ S.C))
     # oscillatory eigenvalues (one of each conjugate pair), lowest |lambda| first
     tol = 1e-9 * np.abs(lam).max(axis=1, keepdims=True)
     mag = np.where(lam.imag > tol, np.abs(lam), np.inf)

@@ -63,7 +63,8 @@ from ..errors import InputError, InstabilityWarning, ResonanceError, SingularMas
 from .expm import balance, exponential_integrals, second_order_transition
 from .threads import one_blas_thread
 
-__all__ = ["solve", "solve_cyclic", "CyclicSolution", "PeriodicSolution", "HOLDS", "METHODS", "auto_delta", "MIN_NODES"]
+__all__ = ["solve", "solve_cyclic", "CyclicSolution", "PeriodicSolution", "HOLDS", "METHODS", "auto_delta", "MIN_NODES",
+           "state_matrix"]
 
 log = logging.getLogger(__name__)
 
@@ -343,8 +344,9 @@ def _state_parts(M, C, K, Q, nodes, inverse=False):
     return S, D, f, Minv
 
 
-def _state_matrix(S, D, dtype=float):
-    """F = [[0, I], [-S, -D]] for a stack (L, N, N) or a single (N, N)."""
+def state_matrix(S, D, dtype=float):
+    """State matrix ``F = [[0, I], [-S, -D]]``, (..., 2N, 2N), of ``S = M^-1 K`` [1/s^2] and
+    ``D = M^-1 C`` [1/s], each a stack (L, N, N) or a single (N, N)."""
     N = S.shape[-1]
     shape = np.broadcast_shapes(S.shape, D.shape)
     F = np.zeros(shape[:-2] + (2 * N, 2 * N), dtype=dtype)
@@ -407,7 +409,7 @@ class _Elements:
             S = sla.lu_solve(lu, K)
             D = sla.lu_solve(lu, C)
             Minv = sla.lu_solve(lu, np.eye(N))
-            F = _state_matrix(S, D)
+            F = state_matrix(S, D)
             G = np.vstack([np.zeros((N, N)), Minv])
             A, G0, G1, info = exponential_integrals(F, G, self.dt, delta=self._delta(S),
                                                     scaling="second-order",
