@@ -30,11 +30,13 @@ line and sweeps ask this registry and name no mechanism.
 
 from __future__ import annotations
 
+import hashlib
 import importlib
 import importlib.util
 import inspect
 import logging
 import os
+import re
 import sys
 import types
 from collections.abc import Callable, Mapping
@@ -47,7 +49,7 @@ from .errors import InputError, did_you_mean
 from .fe.effects import ModalDamping
 
 __all__ = ["GROUP", "SOLVER_KEYS", "Preset", "MechanismInfo", "available", "get", "info", "build", "register",
-           "is_reference", "parameters"]
+           "is_reference", "is_file_reference", "canonical", "reference_of", "for_instance", "parameters"]
 
 log = logging.getLogger(__name__)
 
@@ -180,16 +182,63 @@ class MechanismInfo:
         return Scene(mech, **kw)
 
 
-def _key(name: str) -> str:
+def canonical(name: str, base_dir=None) -> str:
+    """The canonical key of a name: catalogue names with ``_``; a file reference with its path
+    made absolute (relative to ``base_dir``, else the working folder)."""
     name = str(name).strip()
+    if is_file_reference(name):
+        path, _, fn = name.rpartition(":")
+        p = Path(path).expanduser()
+        if not p.is_absolute():
+            p = Path(base_dir or os.getcwd()) / p
+        return f"{p.resolve()}:{fn}"
     return name if is_reference(name) else name.replace("-", "_")
 
 
+def is_file_reference(name: str) -> bool:
+    """``"path/to/my_linkage.py:build"`` (a builder in a Python file)."""
+    path, sep, fn = str(name).rpartition(":")
+    return bool(sep) and path.endswith(".py") and fn.isidentifier()
+
+
 def is_reference(name: str) -> bool:
-    """``"package.module:function"`` (a builder named by where it lives)."""
+    """``"package.module:function"`` or ``"path/to/file.py:function"`` (a builder named by where it lives)."""
+    if is_file_reference(name):
+        return True
     mod, sep, fn = str(name).partition(":")
     return bool(sep) and bool(mod) and bool(fn) and all(p.isidentifier() for p in mod.split(".")) \
         and fn.isidentifier()
+
+
+def reference_of(builder) -> str:
+    """A reference string to a builder function that other processes can load.
+
+    ``"package.module:function"`` when its module can be imported by name, else
+    ``"/abs/path/file.py:function"`` (a function in a script or a file loaded by path).
+
+    Raises
+    ------
+    InputError
+        A lambda, a nested function or a callable without a module or file.
+    """
+    qual = getattr(builder, "__qualname__", "")
+    if not callable(builder) or not qual.isidentifier():
+        raise InputError(f"builder {builder!r}: give a module-level function (a lambda or a nested function "
+                         "cannot be found by the sweep's worker processes), or 'module:function'")
+    mod = getattr(builder, "__module__", None) or ""
+    if mod and mod != "__main__" and not mod.startswith(_USER_PREFIX):
+        try:
+            if importlib.util.find_spec(mod) is not None:
+                return f"{mod}:{qual}"
+        except (ImportError, ValueError):
+            pass
+    try:
+        path = inspect.getsourcefile(builder)
+    except TypeError:
+        path = None
+    if not path:
+        raise InputError(f"builder {builder!r}: its module {mod!r} cannot be imported and it has no file")
+    return f"{Path(path).resolve()}:{qual}"
 
 
 def _entry_points() -> dict:
@@ -212,7 +261,7 @@ def register(name: str, obj) -> None:
     ``SIGNED_PARAMETERS`` of ``obj`` (or of its ``build``) are read as for
     any mechanism (see the module docstring).
     """
-    key = _key(name)
+    key = canonical(name)
     if not key.isidentifier():
         raise InputError(f"catalogue: a mechanism name must be an identifier, got {name!r}")
     _REGISTERED[key] = _as_mechanism(obj, key)
@@ -240,8 +289,8 @@ def _shipped_file(module: str) -> Path | None:
     return path if path.is_file() else None
 
 
-def _load_file(module: str, path: Path):
-    qual = f"kedfem._catalogue.{module}"
+def _load_file(module: str, path: Path, qual: str | None = None):
+    qual = qual or f"kedfem._catalogue.{module}"
     if qual in sys.modules:
         return sys.modules[qual]
     spec = importlib.util.spec_from_file_location(qual, path)
@@ -267,22 +316,39 @@ def _load_entry(name: str, ep):
     return _as_mechanism(obj, name)
 
 
-def _load_reference(name: str):
-    module, _, attr = name.partition(":")
-    try:
-        mod = importlib.import_module(module)
-    except ModuleNotFoundError as e:
-        cwd = os.getcwd()
-        if e.name != module.split(".")[0] or cwd in sys.path:
-            raise InputError(f"mechanism {name!r}: cannot import {module!r}: {e}") from None
-        sys.path.append(cwd)  # the console script does not search the working folder
+_USER_PREFIX = "kedfem_user_"
+
+
+def _load_reference(name: str, base_dir=None):
+    if is_file_reference(name):
+        path, _, attr = name.rpartition(":")
+        p = Path(path)
+        if not p.is_file():
+            raise InputError(f"mechanism {name!r}: no file {p}")
+        qual = _USER_PREFIX + re.sub(r"\W", "_", p.stem) + "_" + hashlib.sha1(str(p).encode()).hexdigest()[:8]
+        try:
+            mod = _load_file(qual, p, qual=qual)
+        except Exception as e:  # the user's file failed to import: say which file and why
+            raise InputError(f"mechanism {name!r}: importing {p} failed: {type(e).__name__}: {e}") from None
+        module = str(p)
+    else:
+        module, _, attr = name.partition(":")
         try:
             mod = importlib.import_module(module)
-        except ModuleNotFoundError:
-            raise InputError(f"mechanism {name!r}: no module {module!r} on the Python path or in {cwd}") from None
+        except ModuleNotFoundError as e:
+            folders = [str(Path(d).resolve()) for d in (base_dir, os.getcwd()) if d is not None]
+            folders = [d for d in dict.fromkeys(folders) if d not in sys.path]
+            if e.name != module.split(".")[0] or not folders:
+                raise InputError(f"mechanism {name!r}: cannot import {module!r}: {e}") from None
+            sys.path.extend(folders)  # the scene file's folder and the working folder
+            try:
+                mod = importlib.import_module(module)
+            except ModuleNotFoundError:
+                raise InputError(f"mechanism {name!r}: no module {module!r} on the Python path or in "
+                                 f"{' or '.join(folders)}") from None
     fn = getattr(mod, attr, None)
     if fn is None:
-        raise InputError(f"mechanism {name!r}: module {module!r} has no {attr!r}")
+        raise InputError(f"mechanism {name!r}: {module!r} has no {attr!r}")
     return _as_mechanism(fn, name)
 
 
@@ -345,8 +411,23 @@ def _info(name: str, source) -> MechanismInfo:
     return MechanismInfo(name, source, source.build, params, signed, pre)
 
 
-def info(name: str) -> MechanismInfo:
-    """The catalogue entry of mechanism ``name`` (see :func:`get` for the names).
+def for_instance(mech) -> MechanismInfo:
+    """A catalogue entry for a built :class:`kedfem.Mechanism` (no parameters, the default preset).
+
+    Scenes and sweeps of a mechanism object can vary the scene (speed, damping, solver), not the
+    mechanism's parameters: for those, give its builder.
+    """
+    def build(**params):
+        if params:
+            raise InputError(f"mechanism {mech.name!r} is a built Mechanism object: it has no parameters "
+                             f"({', '.join(params)}); give its builder function to vary them")
+        return mech
+    build.__doc__ = f"The built mechanism {mech.name!r}."
+    return MechanismInfo(mech.name, types.SimpleNamespace(build=build), build, {}, frozenset(), Preset())
+
+
+def info(name: str, base_dir=None) -> MechanismInfo:
+    """The catalogue entry of mechanism ``name`` (see :func:`get` for the names and ``base_dir``).
 
     Raises
     ------
@@ -354,34 +435,44 @@ def info(name: str) -> MechanismInfo:
         For an unknown name, one that cannot be loaded, or a mechanism whose
         ``PRESET`` or ``SIGNED_PARAMETERS`` is malformed.
     """
-    source = get(name)
-    key = _key(name)
+    source = get(name, base_dir)
+    key = canonical(name, base_dir)
     entry = _INFO.get(key)
     if entry is None or entry.source is not source:
         entry = _INFO[key] = _info(key, source)
     return entry
 
 
-def get(name: str):
+def get(name: str, base_dir=None):
     """The mechanism ``name``: an object with ``build(**params)`` (and ``DEFAULTS`` if it has them).
+
+    Parameters
+    ----------
+    name : str
+        A registered name (entry points, :func:`register`), ``"package.module:function"`` or
+        ``"path/to/file.py:function"``.
+    base_dir : path, optional
+        Folder a relative file path is relative to, and searched for a module that is not on the
+        Python path (a scene file's folder); the working folder is searched too.
 
     Raises
     ------
     InputError
         For an unknown name (listing the known ones) or one that cannot be loaded.
     """
-    key = _key(name)
+    key = canonical(name, base_dir)
     if key in _LOADED:
         return _LOADED[key]
     if key in _REGISTERED:
         out = _REGISTERED[key]
     elif is_reference(key):
-        out = _load_reference(key)
+        out = _load_reference(key, base_dir)
     else:
         eps = _entry_points()
         if key not in eps:
-            raise InputError(f"unknown mechanism {name!r}{did_you_mean(key, available())}; available: {', '.join(available())}, or "
-                             f"'package.module:function' for a builder of your own")
+            raise InputError(f"unknown mechanism {name!r}{did_you_mean(key, available())}; available: "
+                             f"{', '.join(available())}, or 'package.module:function' or 'my_file.py:function' "
+                             "for a builder of your own")
         out = _load_entry(key, eps[key])
     _LOADED[key] = out
     return out

@@ -131,12 +131,12 @@ def _load(target: str | None, overrides: dict) -> _Loaded:
         return _Loaded(spec.scene, spec.outputs, sf.with_overrides(spec.data, overrides), spec.sweep,
                        str(Path(target)))
     key = DEFAULT_MECHANISM if target is None else target
-    key = key if catalogue.is_reference(key) else key.replace("-", "_")
+    key = catalogue.canonical(key)  # a file reference with its absolute path (sweep workers load it)
     if target is not None and not catalogue.is_reference(key) and key not in catalogue.available():
         avail = catalogue.available()
         raise InputError(f"no scene file or mechanism named {target!r}{sf._suggest(key, avail)}; "
-                         f"mechanisms: {', '.join(avail)} (kedfem list), or 'package.module:function' for a "
-                         f"builder of your own")
+                         f"mechanisms: {', '.join(avail)} (kedfem list), or 'package.module:function' or "
+                         f"'my_file.py:function' for a builder of your own")
     data = sf.with_overrides({"mechanism": {"name": key}}, overrides)
     source = "built-in default scene" if target is None else f"mechanism {key}"
     spec = sf.parse_scene(data, source=source, overridden=overrides)
@@ -161,13 +161,6 @@ def _report_warnings():
                     print(f"kedfem: warning: {msg}", file=sys.stderr)
 
 
-def _rel(p: Path, base: Path) -> str:
-    try:
-        return str(Path(p).relative_to(base))
-    except ValueError:
-        return str(p)
-
-
 def _solve(scene):
     from .analysis.pipeline import solve
     with _report_warnings():
@@ -175,144 +168,6 @@ def _solve(scene):
 
 
 # ------------------------------------------------------------------- run
-@dataclasses.dataclass
-class _Stage:
-    times: dict = dataclasses.field(default_factory=dict)
-
-    @contextlib.contextmanager
-    def __call__(self, name):
-        t = time.perf_counter()
-        try:
-            yield
-        finally:
-            self.times[name] = self.times.get(name, 0.0) + time.perf_counter() - t
-
-
-def _fmt_angle(a: float) -> str:
-    return f"{math.degrees(a) % 360:7.1f}" if math.isfinite(a) else "      -"
-
-
-def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_dir: Path | None,
-                   source: str, scene_time: float, mesh=None) -> str:
-    """The summary table printed by ``kedfem run``."""
-    import numpy as np
-
-    from .io.scenefile import scene_summary
-    sc = res.scene
-    info = scene_summary(sc)
-    L = []
-    L.append(f"kedfem {__version__}: {sc.name or sc.mech.name}  [{source}]")
-    L.append(f"  mechanism   {info['mechanism']}: {len(sc.mech.links)} links, "
-             f"{len(sc.mech.flexible_links)} flexible, {res.model.n_dof} elastic DOFs")
-    L.append(f"  speed       {info['speed']}")
-    how = (f"tolerance {sc.rtol:g} on the peaks" if sc.steps is None else "steps given")
-    L.append(f"  solver      {res.scheme}, {res.elements} time elements ({how}), "
-             f"{'iterated (' + sc.nonlinear_method + ')' if sc.state_dependent else 'linear'}, "
-             f"cyclic system by {res.method}")
-    L.append(f"  effects     {info['effects']}")
-    L.append(f"  damping     {info['damping']}")
-    L.append("")
-    L.append("natural frequencies over the cycle [Hz]      mean       min       max")
-    for j in range(freqs.modal.shape[1]):
-        for kind, arr in (("state-space", freqs.state_space[:, j]), ("modal", freqs.modal[:, j])):
-            a = arr[np.isfinite(arr)]
-            if a.size:
-                L.append(f"  mode {j + 1}  {kind:<29s} {a.mean():9.3f} {a.min():9.3f} {a.max():9.3f}")
-            else:
-                L.append(f"  mode {j + 1}  {kind:<29s}         -         -         -")
-    L.append("")
-    err = res.error
-    if peaks:
-        L.append("peak response per flexible link (+- estimated time-discretisation error)")
-        L.append(f"  {'link':<16s} {'deflection [m]':>14s} {'+-':>7s} {'at [deg]':>8s} {'stress [Pa]':>12s} "
-                 f"{'+-':>7s} {'at [deg]':>8s} {'station [m]':>11s}")
-
-        def pm(x):
-            return f"{x:7.1e}" if x is not None else f"{'-':>7s}"
-
-        for p in peaks:
-            e = err.link(p.link) if err is not None else None
-            st = f"{p.stress:12.4e}" if math.isfinite(p.stress) else f"{'n/a (no c)':>12s}"
-            ss = f"{p.stress_station:11.4f}" if math.isfinite(p.stress_station) else f"{'-':>11s}"
-            de = pm(e.deflection) if e else pm(None)
-            se = pm(e.stress) if (e and math.isfinite(p.stress)) else pm(None)
-            L.append(f"  {p.link:<16s} {p.deflection:14.4e} {de} {_fmt_angle(p.deflection_angle):>8s} {st} "
-                     f"{se} {_fmt_angle(p.stress_angle):>8s} {ss}")
-        L.append("  (deflection: mid-span, relative to the chord; stress: max |N|/A + |M| c/I; angles: crank;")
-        L.append("   +-: estimated relative error of the peak)")
-        if err is not None:
-            L.append(f"  time-discretisation error: {err.describe()}")
-        else:
-            L.append("  time-discretisation error: not estimated (estimate = false)")
-        if mesh is not None:
-            L.append(f"  mesh error (not in the +- columns): {mesh.describe()}")
-            for e in mesh.links:
-                if e.deflection is not None:
-                    st = f", stress {e.stress:.1e}" if e.stress is not None else ""
-                    L.append(f"    {e.link:<16s} deflection {e.deflection:.1e}{st}")
-        else:
-            L.append("  mesh error: not estimated (--no-mesh-check, or the comparison mesh failed)")
-    else:
-        L.append("peak response: no flexible links")
-    L.append("")
-    mu = np.abs(np.asarray(res.floquet_multipliers))
-    rho = float(mu.max()) if mu.size else float("nan")
-    if res.stability is not None:
-        L.append(f"Floquet stability   {res.stability.describe()}")
-    else:
-        L.append(f"Floquet stability   spectral radius {rho:.6g} -> {'stable' if res.stable else 'UNSTABLE'}")
-    if sc.state_dependent:
-        last = f", last change {res.history[-1]:.2e}" if res.history else ""
-        L.append(f"iteration           {res.iterations} linear solves, converged: "
-                 f"{'yes' if res.converged else 'NO'} (eps {sc.eps:g}{last})")
-    else:
-        L.append("iteration           none needed (linear scene): 1 periodic solve")
-    L.append(f"residual            {res.residual:.3e} (relative, block-cyclic system)")
-    tm = res.timings
-    parts = [f"kinematics {tm.kinematics:.2f}", f"assembly {tm.assembly:.2f}", f"solve {tm.solve:.2f}"]
-    parts += [f"{k} {v:.2f}" for k, v in stages.items()]
-    L.append(f"wall time [s]       {', '.join(parts)}; total {scene_time:.2f}")
-    if files:
-        L.append(f"files in {out_dir}/")
-        for f in files:
-            L.append(f"  {_rel(f, out_dir)}")
-    else:
-        L.append("files               none written")
-    return "\n".join(L)
-
-
-def _write_outputs(res, freqs, peaks, out_dir: Path, stage: _Stage, *, plots: bool, csv: bool,
-                   npz: bool, vtk: bool, render: bool, modes: int, scale, every: int, dofs,
-                   mesh=None) -> list[Path]:
-    from .io import export
-    files: list[Path] = []
-    out_dir.mkdir(parents=True, exist_ok=True)
-    if csv:
-        with stage("csv"):
-            files.append(export.write_response_csv(res, out_dir / "response.csv"))
-            files.append(export.write_peaks_csv(res, out_dir / "peaks.csv", peaks, mesh=mesh))
-            files.append(export.write_frequencies_csv(freqs, out_dir / "frequencies.csv"))
-    if npz:
-        with stage("npz"):
-            files.append(export.write_npz(res, out_dir / "result.npz", freqs))
-    if plots:
-        from .io import plots as pl
-        with stage("plots"):
-            files.extend(pl.all_plots(res, out_dir, freqs, dofs or None))
-    series = None
-    if vtk or render:
-        with stage("vtk"):
-            series = export.write_vtk_series(res, out_dir, scale=scale, every=every)
-            files.append(series.pvd)
-            if modes:
-                files.append(export.write_mode_shapes(res, out_dir, n_modes=modes).pvd)
-    if render:
-        from .io import render as rd
-        with stage("render"):
-            files.append(rd.render_series(series, out_dir / "deformed.png"))
-    return files
-
-
 def _check_dofs(scene, dofs) -> None:
     """A bad plot label is an input error before any work, not after the solve."""
     if not dofs:
@@ -323,22 +178,8 @@ def _check_dofs(scene, dofs) -> None:
         model.dof_index(d, owner="plot: ")
 
 
-def _check_out_dir(out_dir: Path) -> None:
-    """An output folder that cannot be written is an input error before any work."""
-    import os
-    p = Path(out_dir).absolute()
-    probe = p
-    while not probe.exists():
-        if probe.parent == probe:
-            break
-        probe = probe.parent
-    if probe.exists() and not probe.is_dir():
-        raise InputError(f"--out {out_dir}: {probe} is a file, not a folder")
-    if probe.exists() and not os.access(probe, os.W_OK | os.X_OK):
-        raise InputError(f"--out {out_dir}: folder {probe} is not writable")
-
-
 def _cmd_run(args) -> int:
+    from .io.report import check_out_dir, format_summary, write_result
     t0 = time.perf_counter()
     ld = _load(args.scene, _overrides(args))
     o = ld.outputs
@@ -346,43 +187,22 @@ def _cmd_run(args) -> int:
     sc = ld.scene
     dofs = tuple(args.dofs.split(",")) if args.dofs else o.dofs
     _check_dofs(sc, dofs)
-    _check_out_dir(out_dir)
+    check_out_dir(out_dir)
     check_replaceable(out_dir)
     how = f"{sc.steps} time elements" if sc.steps is not None else f"tolerance {sc.rtol:g}"
     print(f"kedfem {__version__}: solving {sc.name or sc.mech.name} ({sc.scheme}, {how}) ...", flush=True)
-    stage = _Stage()
     res = _solve(sc)
-    with stage("frequencies"):
-        with _report_warnings():
-            # about 2 degrees of crank: the modes vary smoothly over the cycle
-            freqs = res.frequencies(args.n_modes, nodes=list(range(0, res.n, max(1, res.n // 180))))
-    with stage("peaks"):
-        peaks = res.peaks()
-    mesh = None
-    if not args.no_mesh_check:
-        from .analysis.mesh_check import mesh_error
-        with stage("mesh check"):
-            mesh = mesh_error(res)
     want = dict(plots=o.plots and not args.no_plots, csv=o.csv and not args.no_csv,
                 npz=o.npz and not args.no_npz, vtk=o.vtk and not args.no_vtk,
                 render=(o.render or args.render) and not args.no_render)
-    files: list[Path] = []
-    text = ""
-    if any(want.values()):
-        from .io.outdir import RunFolder
-        with RunFolder(out_dir, "run", dict(scene=ld.source)) as rf:
-            staged = _write_outputs(
-                res, freqs, peaks, rf.path, stage, **want,
-                modes=o.modes if args.modes is None else args.modes, scale=args.scale if args.scale else o.scale,
-                every=args.every or o.every, dofs=dofs, mesh=mesh)
-            files = [out_dir / Path(f).relative_to(rf.path) for f in staged]
-            text = format_summary(res, freqs, peaks, stages=stage.times, files=files, out_dir=out_dir,
-                                  source=ld.source, scene_time=time.perf_counter() - t0, mesh=mesh)
-            text += f"\n  summary.txt\n  {MANIFEST} (run {rf.run_id})"
-            (rf.path / "summary.txt").write_text(text + "\n")
-    else:
-        text = format_summary(res, freqs, peaks, stages=stage.times, files=files, out_dir=out_dir,
-                              source=ld.source, scene_time=time.perf_counter() - t0, mesh=mesh)
+    with _report_warnings():
+        if any(want.values()):
+            text = write_result(res, out_dir, **want, modes=o.modes if args.modes is None else args.modes,
+                                scale=args.scale if args.scale else o.scale, every=args.every or o.every,
+                                dofs=dofs, n_modes=args.n_modes, mesh_check=not args.no_mesh_check,
+                                source=ld.source, command="run", started=t0).summary
+        else:
+            text = _summary_only(res, args, ld.source, t0, format_summary)
     print()
     print(text)
     if args.strict and not (res.converged and res.stable and (res.error is None or res.error.met)):
@@ -390,6 +210,18 @@ def _cmd_run(args) -> int:
               "exceeds the tolerance", file=sys.stderr)
         return EXIT_STRICT
     return 0
+
+
+def _summary_only(res, args, source: str, t0: float, format_summary) -> str:
+    """The summary table when no file is written."""
+    from .analysis.fatigue import fatigue_table
+    freqs = res.frequencies(args.n_modes, nodes=list(range(0, res.n, max(1, res.n // 180))))
+    mesh = None
+    if not args.no_mesh_check:
+        from .analysis.mesh_check import mesh_error
+        mesh = mesh_error(res)
+    return format_summary(res, freqs, res.peaks(), stages={}, files=[], out_dir=None, source=source,
+                          scene_time=time.perf_counter() - t0, mesh=mesh, fatigue=fatigue_table(res))
 
 
 # -------------------------------------------------------------- validate
@@ -438,6 +270,7 @@ def _short(v) -> str:
 
 
 def _cmd_sweep(args) -> int:
+    from .io.report import check_out_dir, relative
     from .io import scenefile as sf
     from .io import sweep as sw
     ld = _load(args.scene, _overrides(args))
@@ -451,7 +284,7 @@ def _cmd_sweep(args) -> int:
     # validate the axis keys against the base scene before starting workers
     sf.parse_scene(dict(ld.data, sweep={k: list(v) for k, v in axes.items()}), source="command line")
     out_dir = Path(args.out) if args.out else ld.outputs.dir
-    _check_out_dir(out_dir)
+    check_out_dir(out_dir)
     check_replaceable(out_dir)
     from .io.outdir import RunFolder
     from .io.sweep_journal import SweepJournal, sweep_signature
@@ -502,19 +335,20 @@ def _cmd_sweep(args) -> int:
           f"in {res.wall_time:.2f} s")
     print(f"files in {out_dir}/")
     for f in files:
-        print(f"  {_rel(f, out_dir)}")
+        print(f"  {relative(f, out_dir)}")
     print(f"  {MANIFEST} (run {rf.run_id})")
     return 1 if res.failed else 0
 
 
 # ---------------------------------------------------------------- export
 def _cmd_export(args) -> int:
+    from .io.report import check_out_dir, relative
     from .io import export
     from .io.outdir import RunFolder
     ld = _load(args.scene, _overrides(args))
     o = ld.outputs
     out_dir = Path(args.out) if args.out else o.dir
-    _check_out_dir(out_dir)
+    check_out_dir(out_dir)
     check_replaceable(out_dir)
     sc = ld.scene
     how = f"{sc.steps} time elements" if sc.steps is not None else f"tolerance {sc.rtol:g}"
@@ -543,7 +377,7 @@ def _cmd_export(args) -> int:
     print(f"wall time [s]: solve {t1 - t0:.2f}, vtk {t2 - t1:.2f}, render {t3 - t2:.2f}")
     print(f"files in {out_dir}/")
     for f in files:
-        print(f"  {_rel(f, out_dir)}")
+        print(f"  {relative(f, out_dir)}")
     print(f"  {MANIFEST} (run {rf.run_id})")
     if not res.converged:
         print("kedfem: note: the non-linear iteration did not converge", file=sys.stderr)
@@ -736,8 +570,16 @@ def _setup_logging(verbose: int) -> None:
 def main(argv=None) -> int:
     """Entry point of the ``kedfem`` console script; returns the exit status."""
     argv = list(sys.argv[1:] if argv is None else argv)
+    # -v before the command (kedfem -v run ...) means the same as after it
+    lead = []
+    while argv and re.fullmatch(r"-v+|--verbose", argv[0]):
+        lead.append(argv.pop(0))
     if not argv or (argv[0] not in COMMANDS and argv[0] not in ("-h", "--help", "--version")):
         argv = ["run"] + argv
+    if argv and argv[0] in COMMANDS:
+        argv[1:1] = lead
+    else:
+        argv = lead + argv
     parser = build_parser()
     try:
         args = parser.parse_args(argv)

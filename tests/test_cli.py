@@ -46,7 +46,8 @@ def test_default_run_end_to_end(tmp_path):
                     "files in kedfem-out/"):
         assert heading in text, heading
     dest = tmp_path / "kedfem-out"
-    for name in ("response.csv", "peaks.csv", "frequencies.csv", "result.npz", "displacement.png",
+    for name in ("response.csv", "peaks.csv", "frequencies.csv", "fatigue.csv", "histories.csv", "histories.npz",
+                 "result.npz", "displacement.png",
                  "link_response.png", "frequencies.png", "floquet.png", "response/response.pvd", "modes/modes.pvd",
                  "summary.txt", "kedfem-run.json"):
         assert (dest / name).is_file(), name
@@ -62,8 +63,9 @@ def test_default_run_end_to_end(tmp_path):
     for p in peaks:
         row = next(ln for ln in text.splitlines() if ln.strip().startswith(p["link"] + " "))
         nums = row.split()
-        assert float(nums[1]) == pytest.approx(float(p["peak_deflection [m]"]), rel=1e-4)
-        assert float(nums[4]) == pytest.approx(float(p["peak_stress [Pa]"]), rel=1e-4)
+        # the summary reads mm and MPa, the files SI
+        assert float(nums[1]) == pytest.approx(1e3 * float(p["peak_deflection [m]"]), rel=1e-4)
+        assert float(nums[4]) == pytest.approx(1e-6 * float(p["peak_stress [Pa]"]), rel=1e-4)
     rho = float(re.search(r"spectral radius ([0-9.]+)", text).group(1))
     z = np.load(dest / "result.npz")
     assert rho == pytest.approx(np.abs(z["floquet_multipliers"]).max(), abs=1e-6)
@@ -85,7 +87,8 @@ def test_small_run_in_process_honours_flags(tmp_path, capsys):
     assert rc == 0, err
     assert "zoh, 24 time elements (steps given)" in out and "600 rpm (62.8319 rad/s)" in out
     assert "effects     inertia, coupling" in out
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["frequencies.csv", "kedfem-run.json", "peaks.csv",
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fatigue.csv", "frequencies.csv", "histories.csv",
+                                                          "histories.npz", "kedfem-run.json", "peaks.csv",
                                                           "response.csv", "result.npz", "summary.txt"]
 
 

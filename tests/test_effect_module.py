@@ -8,6 +8,7 @@ import pytest
 import kedfem as kf
 import mechanisms
 from kedfem.fe import effects
+from kedfem.fe.effects import Effect
 from kedfem.fe.effects.joint_torque import JointTorque
 
 
@@ -81,3 +82,35 @@ def test_a_state_dependent_plugin_effect_is_iterated_to_the_closed_form(registry
     th = float(roots[np.abs(roots.imag) < 1e-12].real[0])
     assert th < 0.5 * 40.0 / (EI / L + 500.0)  # the cubic term matters: less than half the linear answer
     np.testing.assert_allclose(res.dof("beam.theta@T"), th, rtol=1e-8)
+
+
+@dataclass(frozen=True)
+class GroundSpring(Effect):
+    """A plug-in through ``asm.joint_terms``: an isotropic spring [N/m] from a joint to the frame."""
+
+    adds: str = "a spring from a joint to the frame"
+    joint: str = ""
+    k: float = 0.0
+
+    def terms(self, asm, chunk):
+        return asm.joint_terms(self.joint, chunk.motion, K=self.k * np.eye(2))
+
+
+def test_a_plugin_at_a_moving_joint_equals_the_built_in_spring(registry):
+    """Joint B of the four-bar turns with the follower (DOFs B.u[...], B.v[...]), so the plug-in's
+    stiffness goes through a moving map and its rates; two built-in springs to the frame along x
+    and y (structural stiffness, no 'springs' effect) are the same physics assembled another way."""
+    registry.register_effect(GroundSpring("b_spring", "a spring", joint="B", k=3.0e4))
+    eff = ("inertia", "coupling", "axial_stiffening")
+    damping = kf.Rayleigh(alpha=20.0)
+    plain = mechanisms.build("four_bar", elements=2)
+    built = mechanisms.build("four_bar", elements=2)
+    built.spring("gx", "B", None, k=3.0e4, axis=(1.0, 0.0))
+    built.spring("gy", "B", None, k=3.0e4, axis=(0.0, 1.0))
+    a = kf.solve(kf.Scene(plain, effects=eff + ("b_spring",), damping=damping, steps=48))
+    b = kf.solve(kf.Scene(built, effects=eff, damping=damping, steps=48))
+    c = kf.solve(kf.Scene(plain, effects=eff, damping=damping, steps=48))
+    assert any("B." in lab and "[" in lab for lab in a.dof_labels)  # B's DOFs turn with a link
+    scale = np.abs(b.U).max()
+    assert np.abs(a.U - b.U).max() < 1e-9 * scale
+    assert np.abs(c.U - b.U).max() > 1e-3 * scale  # the spring matters

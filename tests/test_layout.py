@@ -43,9 +43,15 @@ def _wing(module):
     return parts[1] if len(parts) >= 2 and parts[1] in ALLOWED else None
 
 
+#: the only calls against the grain, inside a method (so the module does not import them):
+#: a result writes its own report and prints its own summary
+LAZY_UPWARD = {("kedfem.analysis.results", "kedfem.io.report")}
+
+
 def test_wings_depend_one_way():
-    bad = [(a, b) for a, b, _ in _imports()
-           if _wing(a) and _wing(b) and _wing(a) != _wing(b) and _wing(b) not in ALLOWED[_wing(a)]]
+    bad = [(a, b) for a, b, top in _imports()
+           if _wing(a) and _wing(b) and _wing(a) != _wing(b) and _wing(b) not in ALLOWED[_wing(a)]
+           and (top or (a, b) not in LAZY_UPWARD)]
     assert not bad, bad
 
 

@@ -322,6 +322,39 @@ class PeriodicResult:
     _cache: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     # ---------------------------------------------------------------- basics
+    def __repr__(self) -> str:
+        sc = self.scene
+        rpm = abs(sc.mech.drives[0].speed) * 60.0 / (2.0 * math.pi) if sc.mech.drives else float("nan")
+        err = f", error {self.error.peak:.1e}" if getattr(self.error, "peak", None) is not None else ""
+        stab = self.stability.verdict if self.stability is not None else ("stable" if self.stable else "UNSTABLE")
+        return (f"<PeriodicResult {sc.name or sc.mech.name}: {rpm:.6g} rpm, {self.model.n_dof} DOFs, "
+                f"{self.scheme} x {self.elements} time elements{err}, {stab}"
+                f"{'' if self.converged else ', NOT converged'}>")
+
+    def summary(self, n_modes: int = 4) -> str:
+        """The summary table ``kedfem run`` prints: scene, frequencies over the cycle, peaks with
+        their errors, fatigue, stability, iteration (no mesh check, no files)."""
+        from .fatigue import fatigue_table
+        from ..io.report import format_summary
+        freqs = self.frequencies(n_modes, nodes=list(range(0, self.n, max(1, self.n // 180))))
+        return format_summary(self, freqs, self.peaks(), stages={}, files=[], out_dir=None, source="python",
+                              scene_time=self.timings.total, fatigue=fatigue_table(self))
+
+    def write(self, out_dir, **options):
+        """Write everything ``kedfem run`` writes for this result into the folder ``out_dir``.
+
+        Keyword options as :func:`kedfem.io.report.write_result` (``plots``, ``csv``, ``npz``,
+        ``vtk``, ``render``, ``modes``, ``mesh_check``, ``fatigue``, ...). The folder is
+        published whole or not at all.
+
+        Returns
+        -------
+        kedfem.io.report.Report
+            The folder, the files and the summary text.
+        """
+        from ..io.report import write_result
+        return write_result(self, out_dir, **options)
+
     @property
     def n(self) -> int:
         return int(self.t.size)
@@ -542,6 +575,16 @@ class PeriodicResult:
         element (:meth:`stations`).
         """
         return _on_stations(self._forces(self._link(link).name, _per_element(per_element))[0])
+
+    def section_forces(self, link: str, per_element: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        """Axial force ``N`` [N] (tension positive) and bending moment ``M = EI v''`` [N m] at the
+        link's stations, each (n, n_el per_element + 1), by element equilibrium (nodes averaged).
+
+        The axial force here is at the stations; :meth:`axial_force` gives it at the element
+        midpoints.
+        """
+        M, N = self._forces(self._link(link).name, _per_element(per_element))
+        return _on_stations(N), _on_stations(M)
 
     def stress(self, link: str, per_element: int = 1) -> np.ndarray:
         """Largest absolute normal stress ``|N|/A + |M| c / I`` at the stations (n, n_el per_element + 1) [Pa].

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from ..errors import KedError
+from ..errors import InputError, KedError
 from ..model import elements as el
 from ..motion.kinematics import Motion
 from ..motion.kinetostatics import JointForces, kinetostatics, link_axial_force
@@ -290,6 +290,66 @@ class Assembler:
         finally:
             self._forms = None
         return {g: o for g, o in out.items() if o}
+
+    def joint_terms(self, joint: str, motion: Motion, *, M=None, C=None, K=None, Q=None) -> dict:
+        """q-space terms of global-frame terms on a joint's elastic translation, for plug-in effects.
+
+        A joint's translation is ``x = E(t) q + p(t)`` (its DOFs may turn with a link:
+        ``B.u[rocker]``); this pushes terms given on ``x`` through that map as the assembler does
+        for its element groups: ``E^T M E``, ``E^T (C E + 2 M E')``, ``E^T (K E + C E' + M E'')``
+        and ``E^T (Q - M p'' - C p' - K p)`` (the map's rates with ``coupling``, as for every
+        element).
+
+        Parameters
+        ----------
+        joint : str
+        motion : Motion
+            The instants (``chunk.motion`` in a hook).
+        M, C, K : array_like, shape (2, 2) or (nt, 2, 2), optional
+            [kg, N s/m, N/m] on ``x``, global components.
+        Q : array_like, shape (2,) or (nt, 2), optional
+            [N] on ``x``.
+
+        Returns
+        -------
+        dict
+            ``"M"``, ``"C"``, ``"K"`` (nt, N, N) and/or ``"Q"`` (nt, N): what a hook's ``terms``
+            returns.
+        """
+        if joint not in self.model.joint_point:
+            raise InputError(f"joint_terms: unknown joint {joint!r} (joints: {', '.join(self.model.joint_point)})")
+        cols, E, E1, E2, p, p1, p2 = self.model.entity_forms(motion)["P"][self.model.joint_point[joint]]
+        nt, N = motion.n, self.model.n_dof
+        M, C, K = (None if X is None else np.broadcast_to(np.asarray(X, float), (nt, 2, 2)) for X in (M, C, K))
+        Q = None if Q is None else np.broadcast_to(np.asarray(Q, float), (nt, 2))
+        moving = self.transport and E1 is not None
+        Et = np.swapaxes(E, -1, -2)
+        q = {"M": None, "C": None, "K": None}
+        if M is not None:
+            q["M"] = Et @ M @ E
+        if C is not None or (moving and M is not None):
+            q["C"] = (Et @ C @ E if C is not None else 0.0) + (2.0 * Et @ M @ E1 if moving and M is not None else 0.0)
+        if K is not None or (moving and (M is not None or C is not None)):
+            q["K"] = sum(x for x in (Et @ K @ E if K is not None else None,
+                                     Et @ C @ E1 if moving and C is not None else None,
+                                     Et @ M @ E2 if moving and M is not None else None) if x is not None)
+        Qx = None if Q is None else Q.copy()
+        if p is not None and not self.frame:
+            for A, off in ((K, p), (C, p1), (M if self.offset_inertia else None, p2)):
+                if A is not None and off is not None:
+                    Qx = (0.0 if Qx is None else Qx) - (A @ off[..., None])[..., 0]
+        out = {}
+        ix = np.asarray(cols, dtype=int)
+        for key, val in q.items():
+            if val is not None and ix.size:
+                full = np.zeros((nt, N, N))
+                full[:, ix[:, None], ix[None, :]] = np.broadcast_to(val, (nt, ix.size, ix.size))
+                out[key] = full
+        if Qx is not None and ix.size:
+            full = np.zeros((nt, N))
+            full[:, ix] = (Et @ Qx[..., None])[..., 0]
+            out["Q"] = full
+        return out
 
     def _effect_terms(self, chunk: Chunk):
         """The chosen effects' q-space terms (``Effect.terms``): (key, array) pairs."""

@@ -1,6 +1,8 @@
 """The finite-element model of a mechanism: DOF numbering, constraint maps and scatter, together.
 
-Elastic displacements are expressed in the global frame. Every component
+Elastic displacements are expressed in the global frame, or (the default, ``corotate``) a
+joint's and an interior node's translations in the frame of a link turning with the mechanism,
+so labels read ``B.u[rocker]``, ``rod.n3.v``. Every component
 (beam element, rigid member's mass, point mass, spring, load) acts on a few
 *entities*: translation points (2 components) and rotations (1). An entity
 is an affine function of the independent generalized coordinates ``q``:

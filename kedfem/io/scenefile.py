@@ -84,7 +84,8 @@ from ..analysis.scene import ACCURACY_PRESETS, HOLDS, MAX_STEPS, NONLINEAR_METHO
 from ..catalogue import SOLVER_KEYS, Preset
 from ..catalogue import parameters as mechanism_parameters
 from ..errors import InputError, KedError, did_you_mean
-from ..fe.effects import EFFECTS, ModalDamping, Rayleigh
+from ..fe.effects import ModalDamping, Rayleigh, check_effects
+from ..model.mechanism import Mechanism
 
 __all__ = ["SceneFileError", "Outputs", "Preset", "SceneSpec", "load_scene", "load_sweep",
            "load_spec", "read_scene_file", "scene_from_dict", "parse_scene", "with_overrides", "mechanism_parameters",
@@ -258,6 +259,9 @@ class _Ctx:
 
     def __init__(self, source: str | None = None, text: str | None = None, overridden=()):
         self.source = source
+        # a scene file's folder: relative builder files are relative to it, and it is searched for
+        # builder modules
+        self.folder = str(Path(source).resolve().parent) if source and Path(source).suffix == ".toml" else None
         self.locator = _Locator(text) if text else None
         self.overridden = set(overridden)
 
@@ -353,23 +357,34 @@ def _mechanism(ctx: _Ctx, data: Mapping):
         raise ctx.error("mechanism", "missing: a scene needs a [mechanism] table with name = one of "
                         f"{', '.join(catalogue.available())}")
     m = data["mechanism"]
+    if isinstance(m, Mechanism):  # a built mechanism (Python API, sweeps): no parameters
+        return catalogue.for_instance(m), {}, m
     if isinstance(m, str):
         m = {"name": m}
     _table(ctx, "mechanism", m)
+    if "builder" in m:
+        if "name" in m:
+            raise ctx.error("mechanism.builder", "give either name (a catalogue mechanism) or builder "
+                            "('my_linkage.py:build' or 'package.module:build'), not both")
+        m = {"name": m["builder"], **{k: v for k, v in m.items() if k != "builder"}}
+        kname = "mechanism.builder"
+    else:
+        kname = "mechanism.name"
     if "name" not in m:
         raise ctx.error("mechanism.name", "missing: name the mechanism, one of "
-                        f"{', '.join(catalogue.available())}")
-    name = _str(ctx, "mechanism.name", m["name"])
+                        f"{', '.join(catalogue.available())}, or builder = 'my_linkage.py:build'")
+    name = _str(ctx, kname, m["name"])
     ref = catalogue.is_reference(name)
-    key = name if ref else name.replace("-", "_")
+    key = catalogue.canonical(name, ctx.folder)
     avail = catalogue.available()
     if not ref and key not in avail:
-        raise ctx.error("mechanism.name", f"unknown mechanism {name!r}{_suggest(key, avail)}; "
-                        f"available: {', '.join(avail)}, or 'package.module:function' for a builder of your own")
+        raise ctx.error(kname, f"unknown mechanism {name!r}{_suggest(key, avail)}; "
+                        f"available: {', '.join(avail)}, or builder = 'my_linkage.py:build' "
+                        "('package.module:build') for a builder of your own")
     try:
-        entry = catalogue.info(key)
+        entry = catalogue.info(key, ctx.folder)
     except KedError as e:
-        raise ctx.error("mechanism.name", str(e)) from None
+        raise ctx.error(kname, str(e)) from None
     defaults = entry.parameters
     params = {}
     for k, v in m.items():
@@ -420,19 +435,19 @@ def _mech_value(ctx, key, name, v, default, signed: bool):
 
 def _effects(ctx, v):
     if v == "all":
-        return tuple(EFFECTS)
+        return check_effects("all")
     if isinstance(v, str):
         v = [v]
     if not isinstance(v, list):
         raise ctx.error("effects", f"must be an array of effect names or \"all\", got {_typename(v)} {v!r}")
-    out = []
     for e in v:
         if not isinstance(e, str):
             raise ctx.error("effects", f"must contain effect names (strings), got {_typename(e)} {e!r}")
-        if e not in EFFECTS:
-            raise ctx.error("effects", f"unknown effect {e!r}{_suggest(e, EFFECTS)}; known: {', '.join(EFFECTS)}")
-        out.append(e)
-    return tuple(out)
+    try:
+        check_effects(v)  # registered, or declared by an installed package (entry points)
+    except InputError as err:
+        raise ctx.error("effects", str(err)) from None
+    return tuple(v)
 
 
 def _damping(ctx, v, default):
@@ -543,6 +558,9 @@ def _sweep(ctx, v, params: Mapping[str, Any]) -> dict[str, tuple]:
             choices = list(_SWEEPABLE_TOP) + [f"mechanism.{p}" for p in params if p != "speed"] + \
                 [f"damping.{k}" for k in _DAMPING_KEYS] + [f"solver.{k}" for k in _SOLVER_KEYS]
             hint = " (the speed is swept as speed_rpm)" if path == "mechanism.speed" else _suggest(path, choices)
+            if head == "mechanism" and not params and rest != "speed":
+                hint = (" (the scene's mechanism is a built Mechanism object: it has no parameters; give its "
+                        "builder to sweep them)")
             raise ctx.error(key, f"cannot sweep {path!r}{hint}; sweepable: steps, speed_rpm, hold, effects, "
                             "mechanism.<parameter>, damping.<key>, solver.<key>")
         if not isinstance(values, list) or not values:

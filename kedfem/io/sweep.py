@@ -525,8 +525,8 @@ def _run_pool(fn, points, workers, bar, on_result=None, retries: int = RETRIES):
     return out
 
 
-def run_sweep(base: Mapping, axes: Mapping[str, Sequence] | None = None, *, points: Sequence[SweepPoint] | None = None,
-              scheduler: str = "processes", executor: cf.Executor | None = None, client=None,
+def run_sweep(base: Mapping | None = None, axes: Mapping[str, Sequence] | None = None, *,
+              points: Sequence[SweepPoint] | None = None, builder=None, scheduler: str = "processes", executor: cf.Executor | None = None, client=None,
               max_workers: int | None = None, progress: bool | None = None,
               frequencies: bool = True, done: Mapping[int, PointResult] | None = None,
               on_result=None, retries: int = RETRIES) -> SweepResult:
@@ -534,10 +534,18 @@ def run_sweep(base: Mapping, axes: Mapping[str, Sequence] | None = None, *, poin
 
     Parameters
     ----------
-    base : mapping
-        Base scene dictionary (TOML layout); unused with ``points``.
+    base : mapping, optional
+        Base scene dictionary (TOML layout); unused with ``points``. Its ``mechanism`` may be a
+        catalogue name, a table, or a built :class:`kedfem.Mechanism` (then only scene keys can
+        be swept: the speed, damping, solver).
     axes : mapping of str to sequence
-        Swept dotted keys and their values (see :func:`make_points`).
+        Swept dotted keys and their values (see :func:`make_points`); ``mechanism.<parameter>``
+        for a builder's parameters.
+    builder : callable or str, optional
+        The mechanism's builder: a module-level function ``build(**params) -> Mechanism``, or
+        ``"package.module:function"`` / ``"path/to/file.py:function"``. It replaces ``base``'s
+        mechanism name (``base["mechanism"]`` may then hold fixed parameters). Workers load it by
+        its module or file (:func:`kedfem.catalogue.reference_of`).
     points : sequence of SweepPoint, optional
         Explicit points instead of a grid (``base`` and ``axes`` are then
         ignored; the table's axis columns are the points' parameter keys).
@@ -571,8 +579,10 @@ def run_sweep(base: Mapping, axes: Mapping[str, Sequence] | None = None, *, poin
     SweepResult
     """
     import functools
+    if builder is not None:
+        base = _with_builder(base, builder)
     if points is None:
-        points = make_points(base, axes or {})
+        points = make_points(base if base is not None else {}, axes or {})
         ax = tuple(_normalize_axes(axes).items())
     else:
         points = list(points)
@@ -628,6 +638,23 @@ def run_sweep(base: Mapping, axes: Mapping[str, Sequence] | None = None, *, poin
     nf = sum(not r.ok for r in res)
     log.info("sweep: %d points on %s in %.2f s (%d failed)", len(res), where, wall, nf)
     return SweepResult(ax, res, wall, where)
+
+
+def _with_builder(base: Mapping | None, builder) -> dict:
+    """``base`` with its mechanism named by ``builder``'s reference (see :func:`run_sweep`)."""
+    from .. import catalogue
+    ref = catalogue.canonical(builder) if isinstance(builder, str) else catalogue.reference_of(builder)
+    if not catalogue.is_reference(ref):
+        raise InputError(f"sweep: builder must be a function or 'module:function' / 'file.py:function', "
+                         f"got {builder!r}")
+    out = dict(base or {})
+    mech = out.get("mechanism")
+    params = {k: v for k, v in mech.items() if k not in ("name", "builder")} if isinstance(mech, Mapping) else {}
+    if mech is not None and not isinstance(mech, Mapping):
+        raise InputError(f"sweep: with builder=, base['mechanism'] may only hold the builder's fixed parameters "
+                         f"(a table), got {type(mech).__name__}")
+    out["mechanism"] = {"name": ref, **params}
+    return out
 
 
 def _run_dask(client, fn, points, bar, on_result=None):

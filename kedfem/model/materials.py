@@ -43,11 +43,21 @@ class Material:
         Density [kg/m^3].
     nu : float, optional
         Poisson's ratio (only used by the Timoshenko shear modulus), default 0.3.
+    yield_strength : float, optional
+        Yield strength ``S_y`` [Pa]: the yield safety factor and the Soderberg line.
+    ultimate_strength : float, optional
+        Ultimate tensile strength ``S_ut`` [Pa]: the Goodman line.
+    endurance_limit : float, optional
+        Fully reversed endurance limit ``S_e`` [Pa] (corrected for the part: surface, size,
+        reliability...): the Goodman and Soderberg lines.
     """
 
     E: float
     rho: float
     nu: float = 0.3
+    yield_strength: float | None = None
+    ultimate_strength: float | None = None
+    endurance_limit: float | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "E", _positive("Material", "E", self.E))
@@ -61,6 +71,13 @@ class Material:
         if not (-1.0 < nu < 0.5):
             raise InputError(f"Material: nu must lie in (-1, 0.5), got {self.nu!r}")
         object.__setattr__(self, "nu", nu)
+        for name in ("yield_strength", "ultimate_strength", "endurance_limit"):
+            v = getattr(self, name)
+            if v is not None:
+                object.__setattr__(self, name, _positive("Material", name, v))
+        if self.yield_strength and self.ultimate_strength and self.yield_strength > self.ultimate_strength:
+            raise InputError(f"Material: yield_strength {self.yield_strength:.4g} Pa exceeds ultimate_strength "
+                             f"{self.ultimate_strength:.4g} Pa")
 
     @property
     def G(self) -> float:

@@ -33,7 +33,7 @@ worked example.
 
 from __future__ import annotations
 
-from ...errors import InputError
+from ...errors import InputError, did_you_mean
 from ..damping import ModalDamping, Rayleigh
 from .axial_stiffening import AxialStiffening
 from .base import Effect
@@ -98,26 +98,58 @@ def chosen(names) -> tuple[Effect, ...]:
     return tuple(EFFECTS[n] for n in check_effects(names))
 
 
-def check_effects(effects) -> tuple[str, ...]:
-    """Validate effect names; return them as a tuple in registry order.
+def _entry_point(name: str) -> Effect | None:
+    """The effect registered under ``name`` by an installed package (entry-point group
+    ``kedfem.effects``: ``name = "package.module:object"``, an :class:`Effect` instance), or None."""
+    from importlib.metadata import entry_points
+    for ep in entry_points(group="kedfem.effects"):
+        if ep.name == name:
+            try:
+                obj = ep.load()
+            except Exception as e:  # an installed package that cannot be imported
+                raise InputError(f"effect {name!r} (entry point {ep.value!r}) cannot be loaded: {e}") from None
+            if isinstance(obj, type) and issubclass(obj, Effect):
+                obj = obj()
+            if not isinstance(obj, Effect) or obj.name != name:
+                raise InputError(f"effect {name!r}: entry point {ep.value!r} is not an Effect named {name!r}")
+            return register_effect(obj)
+    return None
 
-    ``"all"`` (alone) stands for every effect of the registry, as on the
-    command line and in scene files.
+
+def check_effects(effects) -> tuple[str, ...]:
+    """Validate effects; return their names as a tuple in registry order.
+
+    Each item is a registered name, the name of an effect an installed package registers (entry
+    point group ``kedfem.effects``), or an :class:`Effect` instance (registered here if its name is
+    free). ``"all"`` (alone) stands for the built-in effects, as on the command line and in scene
+    files.
 
     Raises
     ------
     InputError
-        An unknown name (the message lists the known ones).
+        An unknown name (the message lists the known ones), an instance whose name another effect
+        holds, or a repeat.
     """
-    if isinstance(effects, str):
-        effects = tuple(EFFECTS) if effects == "all" else (effects,)
+    if isinstance(effects, (str, Effect)):
+        effects = tuple(e.name for e in _BUILT_IN) if effects == "all" else (effects,)
     try:
-        names = list(effects)
+        items = list(effects)
     except TypeError:
         raise InputError(f"effects must be a sequence of names, got {effects!r}") from None
-    for e in names:
-        if not isinstance(e, str) or e not in EFFECTS:
-            raise InputError(f"unknown effect {e!r}; known effects: {', '.join(EFFECTS)}")
+    names = []
+    for e in items:
+        if isinstance(e, Effect):
+            if EFFECTS.get(e.name) is None:
+                register_effect(e)
+            elif EFFECTS[e.name] != e:
+                raise InputError(f"effect {e!r}: the name {e.name!r} is registered for another effect "
+                                 f"({EFFECTS[e.name]!r}); give this one a name of its own")
+            e = e.name
+        if not isinstance(e, str) or (e not in EFFECTS and _entry_point(e) is None):
+            raise InputError(f"unknown effect {e!r}{did_you_mean(str(e), EFFECTS)}; known effects: "
+                             f"{', '.join(EFFECTS)} (an effect of your own: pass the instance, or "
+                             f"register_effect() it, or declare it in the entry-point group kedfem.effects)")
+        names.append(e)
     if len(set(names)) != len(names):
         raise InputError(f"effects repeat: {names}")
     return tuple(n for n in EFFECTS if n in names)
