@@ -1,7 +1,7 @@
 """kedfem: finite-element Kineto-ElastoDynamics of planar elastic linkages."""
 
 from .errors import (AccuracyWarning, ConvergenceWarning, InputError, InstabilityWarning, KedError,
-                     KinematicsError, MobilityError, OptionalDependencyError, ResonanceError,
+                     KinematicsError, LengthWarning, MobilityError, OptionalDependencyError, PlausibilityWarning, ResonanceError,
                      SingularMassError, UnboundedResponseError)
 from .model.materials import Material, Section
 from .model.mechanism import Mechanism

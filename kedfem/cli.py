@@ -221,7 +221,8 @@ def _summary_only(res, args, source: str, t0: float, format_summary) -> str:
         from .analysis.mesh_check import mesh_error
         mesh = mesh_error(res)
     return format_summary(res, freqs, res.peaks(), stages={}, files=[], out_dir=None, source=source,
-                          scene_time=time.perf_counter() - t0, mesh=mesh, fatigue=fatigue_table(res))
+                          scene_time=time.perf_counter() - t0, mesh=mesh, fatigue=fatigue_table(res),
+                          loads=res.loads())
 
 
 # -------------------------------------------------------------- validate

@@ -69,6 +69,14 @@ class OptionalDependencyError(KedError, ImportError):
     """An optional library needed for this output is not installed."""
 
 
+class LengthWarning(UserWarning):
+    """A link's joint coordinates give it another length than the one stated (``link(..., length=)``)."""
+
+
+class PlausibilityWarning(UserWarning):
+    """A result leaves the model's theory: deflections beyond small, stresses beyond yield."""
+
+
 class AccuracyWarning(UserWarning):
     """A result's estimated time-discretisation error exceeds the scene's tolerance."""
 

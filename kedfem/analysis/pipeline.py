@@ -19,6 +19,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
+import sys
 import time
 import warnings
 from dataclasses import dataclass
@@ -35,6 +36,7 @@ from ..motion.kinematics import Cycle, kinematics
 from ..fe.modal_damping import DampingField
 from ..solvers.nonlinear import fixed_point, fixed_point_or_anderson
 from ..solvers.threads import one_blas_thread
+from .plausibility import check_passive_links, check_result
 from .results import PeriodicResult, Sampler, Stability, Timings, stability_verdict
 from .scene import MAX_STEPS, Scene
 
@@ -60,6 +62,8 @@ BAND_INSTANTS = 12
 #: modes whose per-cycle decay lies within this of the least damped one's (natural logarithm)
 #: must keep their multipliers to rtol (:meth:`_Run.stability_floor`)
 STAB_MARGIN = 0.25
+#: seconds of forecast remaining work beyond which a solve warns before it goes on
+LONG_SOLVE = 60.0
 #: a spectral radius below this, even raised by the most the numerical damping can have lowered
 #: it, is stable beyond doubt: the stability floor is not pursued (:meth:`_Run.stable_beyond_doubt`)
 CERTAIN_RHO = 0.5
@@ -149,7 +153,7 @@ class _Level:
     caught: list
 
 
-def solve(scene: Scene) -> PeriodicResult:
+def solve(scene: Scene, progress: bool | None = None) -> PeriodicResult:
     """Periodic steady-state elastic response of a scene, with its error estimate.
 
     Assembles exactly the scene's effects at the instants the time scheme
@@ -163,6 +167,9 @@ def solve(scene: Scene) -> PeriodicResult:
     Parameters
     ----------
     scene : Scene
+    progress : bool, optional
+        A progress bar on stderr (tqdm) for solves longer than about 2 s: the levels solved, their
+        time elements and error estimate. Default: only on a terminal.
 
     Returns
     -------
@@ -194,7 +201,7 @@ def solve(scene: Scene) -> PeriodicResult:
     # damping, products, the periodic solve) ran 10-40x slower on OpenBLAS's
     # threads whenever the other core was busy (benchmarks/peers.py)
     with one_blas_thread():
-        return _Run(scene).run()
+        return _Run(scene, progress).run()
 
 
 def undamped(scene: Scene) -> bool:
@@ -221,11 +228,14 @@ def _coarser(scheme, n: int) -> int | None:
 class _Run:
     """The levels of one solve and their observables on common output instants."""
 
-    def __init__(self, scene: Scene):
+    def __init__(self, scene: Scene, progress: bool | None = None):
         self.t0 = time.perf_counter()
         self.scene = scene
+        self.progress = progress
+        self._bar = None
         self.cycle = Cycle(scene.mech)
         self.model = FEModel(scene.mech, reduction=scene.reduction)
+        check_passive_links(self.model, self.cycle.at(np.arange(72) * (scene.period / 72)))
         self.scheme = schemes.get(scene.scheme)
         self.stiff = None
         if isinstance(self.scheme, (schemes.ExponentialHold, schemes.Fourier)) and scene.stiff_split:
@@ -238,6 +248,7 @@ class _Run:
         self._bands = None
         self._stab_need, self._stab_f = 0, 0.0
         self._stab_loss = None  # n -> the most the scheme lowers ln(rho) on n elements
+        self._read: dict = {}  # (level index, output instants) -> (the level, what reading it computed)
         self._continue = None
         self._grids: dict[int, tuple] = {}
         self._obs: dict[tuple[int, int], accuracy.Observables] = {}
@@ -316,7 +327,26 @@ class _Run:
         log.info("%s: level n=%d (%s) %d iteration(s) rho=%.4g %.3f s", sc.mech.name, n, scheme.name,
                  iters, d.spectral_radius, td - ta)
         self.levels.append(lv)
+        if self._bar is not None:
+            self._bar.update(1)
+            self._bar.set_postfix_str(f"{n} time elements, {td - ta:.1f} s", refresh=True)
         return lv
+
+    def forecast(self, need: int) -> float:
+        """Seconds the remaining levels are likely to take, from the last level's time per element.
+
+        The refinement doubles until three levels agree and the finest resolves the modes the drive
+        excites (``need`` elements) and, unless the verdict is beyond doubt, the stability floor.
+        """
+        lv = self.levels[-1]
+        per = (lv.kinematics + lv.assembly + lv.solve) / lv.n
+        target = max(4 * lv.n if len(self.levels) < 3 else lv.n, need, self._stab_need)
+        target = min(target, MAX_STEPS)
+        left, n = 0.0, lv.n
+        while n < target:
+            n = self.scheme.refine(n)
+            left += per * n
+        return left
 
     def finish(self) -> None:
         """Iterate the last level on to the scene's ``eps`` if it was solved looser."""
@@ -507,14 +537,15 @@ class _Run:
         n = self.levels[-1].n
         if not self._stab_need or n >= self._stab_need or self._stab_loss is None:
             return 0.0
-        return math.expm1(self._stab_loss(n))
+        loss = self._stab_loss(n)
+        return math.expm1(loss) if loss < 700.0 else math.inf  # a very slow crank: no bound
 
     def stable_beyond_doubt(self) -> bool:
         """The finest level's spectral radius, raised by the most its numerical damping can have
         lowered it, is still below :data:`CERTAIN_RHO`: more elements would sharpen a number
         whose verdict is not in doubt (a linkage at rho 0.01 refined to 768 elements for it)."""
-        rho = self.levels[-1].discrete.spectral_radius
-        return bool(np.isfinite(rho) and rho * (1.0 + self.damping_bound()) < CERTAIN_RHO)
+        rho, bound = self.levels[-1].discrete.spectral_radius, self.damping_bound()
+        return bool(np.isfinite(rho) and math.isfinite(bound) and rho * (1.0 + bound) < CERTAIN_RHO)
 
     def stability(self, error=None) -> Stability:
         """Spectral radius of the finest level, its error from the coarser ones, the verdict."""
@@ -524,7 +555,9 @@ class _Run:
             ratio = self.levels[-1].n / self.levels[-2].n
             err = abs(rho[-1] - rho[-2]) / (ratio ** error.rate - 1.0)
         bound = self.damping_bound()
-        if bound:  # the stability floor was not needed: the error is what the damping may hide
+        if bound and self.stable_beyond_doubt():
+            # the stability floor was not needed for the verdict: the error is what the damping
+            # may hide (with fewer elements given than a clear verdict needs, the note says it)
             err = max(err or 0.0, rho[-1] * bound)
         verdict = stability_verdict(rho[-1], err)
         if (verdict == "marginal" and len(rho) >= 2 and rho[-1] > 1.0 + 1e-9
@@ -559,6 +592,9 @@ class _Run:
             lv.iterations, lv.history, float(d.residual), Timings(0.0, 0.0, 0.0, 0.0), d.method,
             elements=lv.n, scheme=self.scheme.name, error=error, sampler=Sampler(self.cycle, d),
             stability=stability)
+        for (_i, n), (level, cache_read) in self._read.items():
+            if n == n_out and level is lv:  # this level on these instants was read for the estimate
+                res._cache.update(cache_read)
         if shared_cache:
             # the constraint maps depend on the motion only: built once per output grid
             if "beam_map" in cache:
@@ -570,7 +606,9 @@ class _Run:
     def observe(self, i: int, n_out: int) -> accuracy.Observables:
         key = (i, n_out)
         if key not in self._obs:
-            self._obs[key] = self.result(self.levels[i], n_out).observables()
+            res = self.result(self.levels[i], n_out)
+            self._obs[key] = res.observables()
+            self._read[key] = (self.levels[i], res._cache)  # its peaks, forces... for the result
         return self._obs[key]
 
     def estimate(self, n_out: int, need: int = 0) -> accuracy.ErrorEstimate | None:
@@ -589,6 +627,17 @@ class _Run:
 
     # ------------------------------------------------------------------- run
     def run(self) -> PeriodicResult:
+        from tqdm.auto import tqdm
+        self._bar = tqdm(desc=self.scene.name or self.scene.mech.name, unit="level", file=sys.stderr, delay=2.0,
+                         disable=None if self.progress is None else not self.progress, dynamic_ncols=True,
+                         leave=False)
+        try:
+            return self._run()
+        finally:
+            self._bar.close()
+            self._bar = None
+
+    def _run(self) -> PeriodicResult:
         sc, scheme = self.scene, self.scheme
         est = None
         need, f_res = self.resolution() if (sc.estimate or sc.steps is None) else (0, 0.0)
@@ -621,6 +670,14 @@ class _Run:
             believed = False
             while True:
                 lv = self.level(n, eps=eps_level)
+                if len(self.levels) == 1:
+                    left = self.forecast(need)
+                    if left > LONG_SOLVE:
+                        log.warning("%s: this solve will take about %.0f s more (%d elastic DOFs, up to %d time "
+                                    "elements per cycle: %.2f s per element measured on the first %d); a looser "
+                                    "rtol or a coarser mesh is faster", sc.mech.name, left, self.model.n_dof,
+                                    max(need, self._stab_need, 4 * n),
+                                    (lv.kinematics + lv.assembly + lv.solve) / n, n)
                 failed = 0
                 for prev in reversed(self.levels):
                     if prev.converged:
@@ -635,6 +692,8 @@ class _Run:
                     break
                 if len(self.levels) >= 3:
                     est = self.estimate(self.output_steps(n), need)
+                    if self._bar is not None and est.peak is not None:
+                        self._bar.set_postfix_str(f"{n} time elements, error {est.peak:.1e}", refresh=True)
                     # before the asymptotic range the estimate is loose (over): refine on; and
                     # on until the scheme's numerical damping leaves the spectral radius right.
                     # Once a level was in the asymptotic range and met rtol, the finer levels the
@@ -673,6 +732,7 @@ class _Run:
                        f"convergence rate observed over three levels")
             warnings.warn(f"{sc.mech.name}: {why}, with {how}", AccuracyWarning, stacklevel=3)
         res = self.result(final, n_out, error=est, stability=self.stability(est))
+        check_result(res)
         total = time.perf_counter() - self.t0
         kin = self.t_setup + sum(lv.kinematics for lv in self.levels)
         asm = sum(lv.assembly for lv in self.levels)

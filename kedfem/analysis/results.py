@@ -338,7 +338,21 @@ class PeriodicResult:
         from ..io.report import format_summary
         freqs = self.frequencies(n_modes, nodes=list(range(0, self.n, max(1, self.n // 180))))
         return format_summary(self, freqs, self.peaks(), stages={}, files=[], out_dir=None, source="python",
-                              scene_time=self.timings.total, fatigue=fatigue_table(self))
+                              scene_time=self.timings.total, fatigue=fatigue_table(self), loads=self.loads())
+
+    def loads(self, elastic: bool = True):
+        """Bearing forces and drive torques over the cycle, rigid-body and (``elastic``) from the
+        elastic response (:func:`kedfem.analysis.loads.machine_loads`; docs/loads.md).
+
+        Returns
+        -------
+        kedfem.analysis.loads.MachineLoads
+        """
+        key = ("loads", bool(elastic))
+        if key not in self._cache:
+            from .loads import machine_loads
+            self._cache[key] = machine_loads(self, elastic=elastic)
+        return self._cache[key]
 
     def write(self, out_dir, **options):
         """Write everything ``kedfem run`` writes for this result into the folder ``out_dir``.

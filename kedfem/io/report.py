@@ -21,6 +21,7 @@ import numpy as np
 from .. import __version__
 from ..errors import InputError
 from .fatigue_files import write_fatigue_csv, write_histories
+from .loads_files import plot_loads, write_loads_csv
 from .outdir import MANIFEST, RunFolder, check_replaceable
 
 __all__ = ["Stages", "Report", "format_summary", "write_outputs", "write_result", "check_out_dir", "relative"]
@@ -54,7 +55,7 @@ def _angle(a: float) -> str:
 
 
 def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_dir: Path | None,
-                   source: str, scene_time: float, mesh=None, fatigue=None) -> str:
+                   source: str, scene_time: float, mesh=None, fatigue=None, loads=None) -> str:
     """The summary table of a result (what ``kedfem run`` prints and writes to ``summary.txt``)."""
     from .scenefile import scene_summary
     sc = res.scene
@@ -113,6 +114,9 @@ def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_di
             L.append("  mesh error: not estimated (--no-mesh-check, or the comparison mesh failed)")
     else:
         L.append("peak response: no flexible links")
+    if loads is not None:
+        L.append("")
+        L.extend(loads.summary().splitlines())
     if fatigue is not None and fatigue.links:
         L.append("")
         L.append("fatigue (signed fibre stress N/A -+ M c/I over the cycle; fatigue.csv per station)")
@@ -147,7 +151,7 @@ def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_di
 
 def write_outputs(res, freqs, peaks, out_dir: Path, stage: Stages, *, plots: bool, csv: bool,
                   npz: bool, vtk: bool, render: bool, modes: int, scale, every: int, dofs,
-                  mesh=None, fatigue=None) -> list[Path]:
+                  mesh=None, fatigue=None, loads=None) -> list[Path]:
     """Write the files of a result into ``out_dir`` (a staging folder); return them.
 
     CSV (``response.csv``, ``peaks.csv``, ``frequencies.csv``, and with a fatigue table
@@ -164,6 +168,8 @@ def write_outputs(res, freqs, peaks, out_dir: Path, stage: Stages, *, plots: boo
             files.append(export.write_frequencies_csv(freqs, out_dir / "frequencies.csv"))
             if fatigue is not None and fatigue.links:
                 files.append(write_fatigue_csv(fatigue, out_dir / "fatigue.csv"))
+            if loads is not None:
+                files.append(write_loads_csv(loads, out_dir / "loads.csv"))
     if fatigue is not None and fatigue.links and (csv or npz):
         with stage("histories"):
             files.extend(write_histories(res, out_dir / "histories.csv" if csv else None,
@@ -175,6 +181,8 @@ def write_outputs(res, freqs, peaks, out_dir: Path, stage: Stages, *, plots: boo
         from . import plots as pl
         with stage("plots"):
             files.extend(pl.all_plots(res, out_dir, freqs, dofs or None))
+            if loads is not None:
+                files.append(plot_loads(loads, out_dir / "loads.png"))
     series = None
     if vtk or render:
         with stage("vtk"):
@@ -226,7 +234,7 @@ class Report:
 
 def write_result(res, out_dir, *, plots: bool = True, csv: bool = True, npz: bool = True, vtk: bool = True,
                  render: bool = False, modes: int = 4, scale=None, every: int = 1, dofs=(),
-                 n_modes: int = 4, mesh_check: bool = False, fatigue: bool = True,
+                 n_modes: int = 4, mesh_check: bool = False, fatigue: bool = True, loads: bool = True,
                  source: str = "python", command: str = "write", started: float | None = None) -> Report:
     """Write everything ``kedfem run`` writes for ``res`` into the folder ``out_dir``.
 
@@ -251,6 +259,8 @@ def write_result(res, out_dir, *, plots: bool = True, csv: bool = True, npz: boo
         Estimate the mesh error (one more solve on a finer mesh).
     fatigue : bool
         The fatigue table and the stress histories.
+    loads : bool
+        Bearing forces and drive torques (``loads.csv``, ``loads.png``, the summary).
     source : str
         Where the scene came from, for the summary.
     command : str
@@ -279,6 +289,10 @@ def write_result(res, out_dir, *, plots: bool = True, csv: bool = True, npz: boo
         from ..analysis.fatigue import fatigue_table
         with stage("fatigue"):
             table = fatigue_table(res)
+    machine = None
+    if loads:
+        with stage("loads"):
+            machine = res.loads()
     mesh = None
     if mesh_check:
         from ..analysis.mesh_check import mesh_error
@@ -287,10 +301,11 @@ def write_result(res, out_dir, *, plots: bool = True, csv: bool = True, npz: boo
     with RunFolder(out_dir, command, dict(scene=source)) as rf:
         staged = write_outputs(res, freqs, peaks, rf.path, stage, plots=plots, csv=csv, npz=npz, vtk=vtk,
                                render=render, modes=modes, scale=scale, every=every, dofs=tuple(dofs),
-                               mesh=mesh, fatigue=table)
+                               mesh=mesh, fatigue=table, loads=machine)
         files = [out_dir / Path(f).relative_to(rf.path) for f in staged]
         text = format_summary(res, freqs, peaks, stages=stage.times, files=files, out_dir=out_dir,
-                              source=source, scene_time=time.perf_counter() - t0, mesh=mesh, fatigue=table)
+                              source=source, scene_time=time.perf_counter() - t0, mesh=mesh, fatigue=table,
+                              loads=machine)
         text += f"\n  summary.txt\n  {MANIFEST} (run {rf.run_id})"
         (rf.path / "summary.txt").write_text(text + "\n")
     return Report(out_dir, tuple(files) + (out_dir / "summary.txt",), text, rf.run_id)

@@ -262,7 +262,7 @@ def run_point(point: SweepPoint, frequencies: bool = True, pin: bool = True) -> 
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ConvergenceWarning)
             warnings.simplefilter("ignore", InstabilityWarning)
-            res = solve(scene)
+            res = solve(scene, progress=False)  # the sweep has its own bar
         fund = res.frequencies(1).fundamental if frequencies else float("nan")
         mu = np.abs(np.asarray(res.floquet_multipliers))
         return PointResult(point.index, point.params, True, "", time.perf_counter() - t0, bool(res.converged),

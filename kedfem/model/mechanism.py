@@ -13,7 +13,9 @@ counter-clockwise; a link's angle is the angle of its ``a -> b`` line.
 
 from __future__ import annotations
 
+import logging
 import math
+import warnings
 from dataclasses import dataclass, field
 
 import networkx as nx
@@ -21,6 +23,8 @@ import numpy as np
 
 from ..errors import InputError
 from .materials import Material, Section, real
+from . import placement
+from ..errors import LengthWarning
 
 __all__ = [
     "Mechanism",
@@ -36,6 +40,10 @@ __all__ = [
 ]
 
 GROUND = "ground"
+#: Relative difference between a link's stated ``length=`` and its coordinates that warns
+LENGTH_RTOL = 1e-6
+
+log = logging.getLogger(__name__)
 
 
 def _vec2(owner: str, name: str, value) -> tuple[float, float]:
@@ -323,7 +331,7 @@ class Mechanism:
              section: Section | None = None, elements: int = 1, rigid: bool = False,
              ends=("pin", "pin"), mass: float | None = None, J: float | None = None,
              mass_matrix: str = "consistent", timoshenko: bool = False,
-             kinematic: bool = True) -> Link:
+             kinematic: bool = True, length: float | None = None) -> Link:
         """Add a straight link from joint ``a`` to joint ``b``.
 
         Parameters
@@ -359,6 +367,12 @@ class Mechanism:
             its frame follows the chord between its end joints, and the change
             of chord length is a prescribed elastic elongation. It carries no
             kinetostatic force; its axial force comes from the elastic solution.
+        length : float, optional
+            The link's length as specified [m]. The coordinates of ``a`` and
+            ``b`` define the length used; when they give one that differs from
+            ``length`` by more than :data:`LENGTH_RTOL` (relative), a
+            :class:`~kedfem.errors.LengthWarning` is issued (and
+            logged) naming the joints and both lengths.
         """
         self._check_component_name("link", name)
         owner = f"link '{name}'"
@@ -366,9 +380,12 @@ class Mechanism:
         jb = self._check_joint(owner, b)
         if a == b:
             raise InputError(f"{owner}: both ends at joint '{a}'")
+        stated = length
         length = float(np.hypot(jb.at[0] - ja.at[0], jb.at[1] - ja.at[1]))
         if length <= 1e-12:
             raise InputError(f"{owner}: zero length (joints '{a}' and '{b}' coincide at {ja.at})")
+        if stated is not None:
+            stated = _number(owner, "length", stated, positive=True)
         if isinstance(ends, str):
             ends = (ends, ends)
         ends = tuple(ends)
@@ -404,9 +421,142 @@ class Mechanism:
             j = m * length**2 / 12.0
         lk = Link(name, a, b, bool(rigid), material, section, n_el, ends, float(m), float(j),
                   mass_matrix, bool(timoshenko), length, bool(kinematic))
+        if stated is not None:
+            self._check_length(owner, ja, jb, length, stated)
         self.links[name] = lk
         self.graph.add_edge(a, b, key=name, kind="link", component=lk)
         return lk
+
+    @staticmethod
+    def _check_length(owner: str, ja: Joint, jb: Joint, length: float, stated: float) -> None:
+        """Warn (and log) when the coordinates give a link another length than the stated one."""
+        rel = abs(length - stated) / stated
+        if rel > LENGTH_RTOL:
+            msg = (f"{owner}: joints '{ja.name}' {ja.at} and '{jb.name}' {jb.at} are {length:.9g} m apart, "
+                   f"not the stated length {stated:.9g} m (relative difference {rel:.2g}); the coordinates "
+                   "are used (place joints from lengths with Mechanism.at_lengths / at_angle)")
+            log.warning(msg)
+            warnings.warn(msg, LengthWarning, stacklevel=3)
+
+    # -------------------------------------------------------------- placement
+    def _position(self, owner: str, ref) -> tuple[str, tuple[float, float]]:
+        """(label, position) of a joint name or a point (x, y)."""
+        if isinstance(ref, str):
+            return ref, self._check_joint(owner, ref).at
+        pt = _vec2(owner, "point", ref)
+        return f"{pt}", pt
+
+    def _anchor(self, owner: str, spec) -> tuple[str, tuple[float, float], float, str | None]:
+        """(joint, position, length, label) of a ``(joint, length)`` or ``(joint, length, name)``."""
+        if not isinstance(spec, (tuple, list)) or len(spec) not in (2, 3) or not isinstance(spec[0], str):
+            raise InputError(f"{owner}: give each anchor as (joint, length) or (joint, length, name), "
+                             f"got {spec!r}")
+        joint, pos = self._position(owner, spec[0])
+        length = _number(owner, f"the length from '{joint}'", spec[1], positive=True)
+        label = f"{spec[2]} {length:.6g} m" if len(spec) == 3 else None
+        return joint, pos, length, label
+
+    def at_angle(self, origin, length: float, angle: float) -> tuple[float, float]:
+        """The point at ``length`` from a joint in the direction ``angle`` (a crank's end).
+
+        Parameters
+        ----------
+        origin : str or (float, float)
+            A joint (its reference position) or a point [m].
+        length : float
+            [m], > 0.
+        angle : float
+            [rad], counter-clockwise from +x.
+
+        Returns
+        -------
+        (float, float)
+            A position for ``at=`` of :meth:`joint`, :meth:`ground` or :meth:`slider` [m].
+
+        Examples
+        --------
+        >>> m.joint("A", at=m.at_angle("O2", 0.108, math.radians(30)))
+        """
+        _label, pos = self._position("at_angle", origin)
+        return placement.at_angle(pos, length, angle)
+
+    def at_lengths(self, first, second, branch: str = "open") -> tuple[float, float]:
+        """The point at given distances from two joints (closing a dyad).
+
+        Parameters
+        ----------
+        first, second : (str, float) or (str, float, str)
+            ``(joint, length)`` or ``(joint, length, link name)``: the point lies
+            ``length`` [m] from each joint (the link name only words the errors).
+        branch : {"open", "crossed", "left", "right"}
+            Which of the two mirror-image points
+            (:mod:`kedfem.model.placement`): ``"left"`` / ``"right"`` of the
+            directed line from ``first`` to ``second``; ``"open"`` / ``"crossed"``
+            are the four-bar's circuits in Norton's convention (one of the joints
+            a ground pivot, the other the moving joint ``A``: ``"open"`` is
+            left of ``A -> pivot``), in either order.
+
+        Returns
+        -------
+        (float, float)
+            A position for ``at=`` [m].
+
+        Raises
+        ------
+        InputError
+            The circles do not meet (naming the joints and lengths, e.g.
+            ``coupler 0.2 m + rocker 0.2 m = 0.4 m < distance |A-O4| = 0.5 m``),
+            or ``"open"`` / ``"crossed"`` without exactly one ground joint.
+
+        Examples
+        --------
+        >>> m.joint("B", at=m.at_lengths(("A", 0.2794, "coupler"), ("O4", 0.2705, "rocker")))
+        """
+        owner = "at_lengths"
+        p, pp, a, la = self._anchor(owner, first)
+        q, qq, b, lb = self._anchor(owner, second)
+        placement._side(branch, placement.BRANCHES, owner)
+        side = branch
+        if branch in ("open", "crossed"):
+            grounds = [j for j in (p, q) if j in self.joints and self.joints[j].grounded]
+            if len(grounds) != 1:
+                raise InputError(f"{owner}: branch {branch!r} is a four-bar circuit, defined for a dyad that "
+                                 f"closes on one ground pivot; of '{p}' and '{q}', "
+                                 f"{len(grounds)} are ground joints: use branch 'left' or 'right' "
+                                 f"(of the line from '{p}' to '{q}')")
+            # open: left of the line from the moving joint to the ground pivot
+            left_of_pq = (branch == "open") == (grounds[0] == q)
+            side = "left" if left_of_pq else "right"
+        return placement.circle_intersection(pp, a, qq, b, side, names=(p, q), labels=(la, lb))
+
+    def at_length_on_line(self, first, through, axis=(1.0, 0.0), branch: str = "open") -> tuple[float, float]:
+        """The point on a line at a given distance from a joint (a slider-crank's slider).
+
+        Parameters
+        ----------
+        first : (str, float) or (str, float, str)
+            ``(joint, length)`` or ``(joint, length, link name)``: the crank pin and the rod's length [m].
+        through : str or (float, float)
+            A joint or a point of the slider's line [m].
+        axis : (float, float)
+            The line's direction.
+        branch : {"open", "ahead", "crossed", "behind"}
+            ``"open"`` / ``"ahead"``: the point further along ``axis``
+            (Norton's open slider-crank); ``"crossed"`` / ``"behind"``: the other.
+
+        Returns
+        -------
+        (float, float)
+            A position for ``at=`` of :meth:`slider` [m].
+
+        Examples
+        --------
+        >>> m.slider("B", at=m.at_length_on_line(("A", 0.30, "rod"), through="O"), axis=(1.0, 0.0))
+        """
+        owner = "at_length_on_line"
+        p, pp, a, la = self._anchor(owner, first)
+        _label, c = self._position(owner, through)
+        return placement.line_intersection(pp, a, c, axis, branch, name=p, label=la)
 
     def body(self, name: str, joints, *, mass: float, J: float, cm=None) -> Body:
         """Add a rigid body attached at several joints.

@@ -14,12 +14,20 @@ The forces feed the ``axial_stiffening`` effect: the axial force along
 each flexible link follows from the force at its ``a`` end and its
 distributed inertia (and weight), so a slider's inertia and its normal
 reaction reach the connecting rod together with the rod's end shear.
+
+The same equations give the joint forces of an elastic response
+(:class:`KnownForces`, used by :mod:`kedfem.analysis.loads`): the flexible
+links' end forces are then known from their section forces, their own
+balance is dropped, the rigid members and pins move with their elastic
+accelerations too, and the remaining forces follow by least squares; the
+equations left over (the balance of pins between flexible links) measure
+how well the known forces balance.
 """
 
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -27,9 +35,12 @@ from ..errors import KedError
 from .kinematics import Motion
 from ..model.mechanism import Mechanism
 
-__all__ = ["JointForces", "kinetostatics", "link_axial_force"]
+__all__ = ["JointForces", "KnownForces", "kinetostatics", "link_axial_force"]
 
 log = logging.getLogger(__name__)
+
+#: Weight of a pin's balance against a member's in the least squares of :class:`KnownForces`
+PIN_WEIGHT = 1e4
 
 
 def _cross(a, b):
@@ -47,13 +58,19 @@ class JointForces:
     force : ndarray, shape (n, n_pairs, 2)
         Force the joint pin exerts on the member [N], global components.
     moment : ndarray, shape (n, n_pairs)
-        Moment the pin exerts on the member [N m] (non-zero at welded joints).
+        Moment the pin exerts on the member [N m] (non-zero at welded joints,
+        and with :class:`KnownForces` where an elastically clamped end passes one).
     drive_torque : ndarray, shape (n, n_drives)
         Torque of each drive on its member [N m].
     frame_reaction : dict
         Joint name -> (n, 2) force of the frame on the pin [N].
     residual : float
-        Relative residual of the equations solved.
+        Relative residual of the equations solved (with :class:`KnownForces`:
+        the largest imbalance of an equation, relative to the largest force
+        or moment term).
+    frame_moment : dict
+        Joint name -> (n,) moment of the frame on the pin [N m], at the
+        ground joints that take one (clamped, or an elastically clamped end).
     """
 
     pairs: tuple[tuple[str, str], ...]
@@ -62,10 +79,54 @@ class JointForces:
     drive_torque: np.ndarray
     frame_reaction: dict
     residual: float
+    frame_moment: dict = field(default_factory=dict)
 
     def on(self, member: str, joint: str) -> np.ndarray:
         """Force (n, 2) [N] the pin at ``joint`` exerts on ``member``."""
         return self.force[:, self.pairs.index((member, joint))]
+
+
+@dataclass(frozen=True)
+class KnownForces:
+    """What an elastic response fixes in the joint equilibrium of :func:`kinetostatics`.
+
+    Attributes
+    ----------
+    force : dict
+        ``(member, joint)`` -> (n, 2) force [N] the pin exerts on the member,
+        for every attachment of the members whose forces are known (flexible
+        links); their own balance equations are dropped.
+    moment : dict
+        ``(member, joint)`` -> (n,) moment [N m] the pin exerts on such a member
+        (an elastically clamped end); the joint then gets a moment balance.
+    torque : dict
+        Driven member -> (n,) known drive torque [N m].
+    moment_pairs : frozenset of (str, str)
+        ``(member, joint)`` of members whose forces are unknown that take a
+        moment at a joint that is not welded (a rigid member an elastic end
+        is clamped to).
+    frame_moments : frozenset of str
+        Ground joints, not clamped, whose frame takes a moment (an elastic
+        end clamped to the frame).
+    member_acceleration : ndarray, shape (n, n_members, 2), optional
+        Elastic acceleration of each member's centre [m/s^2] (``motion.member_names``).
+    member_angular_acceleration : ndarray, shape (n, n_members), optional
+        Elastic angular acceleration of each member [rad/s^2].
+    joint_acceleration : ndarray, shape (n, n_joints, 2), optional
+        Elastic acceleration of each pin [m/s^2] (``motion.joint_names``).
+    joint_angular_acceleration : ndarray, shape (n, n_joints), optional
+        Elastic angular acceleration at each joint [rad/s^2] (point masses' ``J``).
+    """
+
+    force: dict
+    moment: dict = field(default_factory=dict)
+    torque: dict = field(default_factory=dict)
+    moment_pairs: frozenset = frozenset()
+    frame_moments: frozenset = frozenset()
+    member_acceleration: np.ndarray | None = None
+    member_angular_acceleration: np.ndarray | None = None
+    joint_acceleration: np.ndarray | None = None
+    joint_angular_acceleration: np.ndarray | None = None
 
 
 def _member_mass(mech: Mechanism, name: str):
@@ -85,156 +146,172 @@ def member_centre(mech: Mechanism, motion: Motion, name: str):
     return motion.point(name, origin, offset)
 
 
-def kinetostatics(mech: Mechanism, motion: Motion, *, inertia: bool = True,
-                  gravity: bool = False, joint_loads: np.ndarray | None = None,
-                  member_moments: np.ndarray | None = None) -> JointForces:
-    """Joint forces of the rigid mechanism in dynamic equilibrium.
+def _members_of(mech: Mechanism, name: str) -> tuple[str, ...]:
+    return mech.links[name].joints if name in mech.links else mech.bodies[name].joints
 
-    Parameters
-    ----------
-    mech : Mechanism
-        The mechanism.
-    motion : Motion
-        Its rigid-body motion (``n`` time nodes).
-    inertia : bool
-        Include the inertia of members and point masses.
-    gravity : bool
-        Include the weight of members and point masses (``mech.gravity``).
-    joint_loads : ndarray, shape (n, n_joints, 2), optional
-        Applied forces on the joint pins [N] (springs, loads, friction at the
-        rigid state), joints in ``motion.joint_names`` order.
-    member_moments : ndarray, shape (n, n_members), optional
-        Applied moments on the members [N m] (torsional springs), members in
-        ``motion.member_names`` order.
 
-    Returns
-    -------
-    JointForces
+class _Layout:
+    """Unknown columns and equation rows of the joint equilibrium (one layout for all instants).
 
-    Raises
-    ------
-    KedError
-        The mechanism is statically indeterminate or under-constrained, so
-        the joint forces are not unique.
+    Columns: forces of the pairs whose forces are unknown (2 each), their
+    moments where they take one, ground reactions (2) and ground moments,
+    slider normals, unknown drive torques. Rows: 3 per member whose forces
+    are unknown, 2 per joint, 1 per joint passing moments.
     """
-    n = motion.n
-    # redundant (kinematic=False) links take no kinetostatic force: their mass goes to their pins
-    passive = [m for m in motion.member_names if m in mech.links and not mech.links[m].kinematic]
-    members = [m for m in motion.member_names if m not in passive]
-    joints = list(motion.joint_names)
-    midx = {m: i for i, m in enumerate(members)}
-    jidx = {j: i for i, j in enumerate(joints)}
-    pairs = []
-    for mname in members:
-        js = mech.links[mname].joints if mname in mech.links else mech.bodies[mname].joints
-        pairs.extend((mname, j) for j in js)
-    npair = len(pairs)
-    # unknown layout: pair forces (2 each), pair moments at welded joints, ground
-    # reactions (2), ground moments at clamped joints, slider normals, drive torques
-    col = 0
-    f_col = {}
-    for p in pairs:
-        f_col[p] = col
-        col += 2
-    m_col = {}
-    for p in pairs:
-        if mech.joints[p[1]].welded:
-            m_col[p] = col
-            col += 1
-    g_col, gm_col, s_col = {}, {}, {}
-    for j in mech.joints.values():
-        if j.kind == "ground":
-            g_col[j.name] = col
-            col += 2
-            if j.welded:
-                gm_col[j.name] = col
+
+    def __init__(self, mech: Mechanism, motion: Motion, known: KnownForces | None):
+        kf = known.force if known is not None else {}
+        km = known.moment if known is not None else {}
+        kt = known.torque if known is not None else {}
+        extra_m = known.moment_pairs if known is not None else frozenset()
+        extra_g = known.frame_moments if known is not None else frozenset()
+        # redundant (kinematic=False) links take no kinetostatic force: their mass goes to their
+        # pins, unless their end forces are known (an elastic response)
+        self.passive = [m for m in motion.member_names if m in mech.links and not mech.links[m].kinematic
+                        and (m, mech.links[m].a) not in kf]
+        members = [m for m in motion.member_names if m not in self.passive]
+        self.joints = list(motion.joint_names)
+        self.pairs = [(m, j) for m in members for j in _members_of(mech, m)]
+        given = {m for m in members if all((m, j) in kf for j in _members_of(mech, m))}
+        self.members = [m for m in members if m not in given]  # members with balance rows
+        col = 0
+        self.f_col = {}
+        for p in self.pairs:
+            if p not in kf:
+                self.f_col[p] = col
+                col += 2
+        self.m_col = {}
+        for p in self.pairs:
+            if p[0] not in given and (mech.joints[p[1]].welded or p in extra_m):
+                self.m_col[p] = col
                 col += 1
-        elif j.kind == "slider":
-            s_col[j.name] = col
-            col += 1
-    d_col = []  # None: the drive acts through a clamped ground joint's moment
-    for d in mech.drives:
-        if mech.joints[d.ground_joint].welded:
-            d_col.append(None)
-        else:
-            d_col.append(col)
-            col += 1
-    n_unk = col
-    n_eq = 3 * len(members) + 2 * len(joints) + sum(1 for j in mech.joints.values() if j.welded)
-    A = np.zeros((n, n_eq, n_unk))
-    b = np.zeros((n, n_eq))
+        self.g_col, self.gm_col, self.s_col = {}, {}, {}
+        for j in mech.joints.values():
+            if j.kind == "ground":
+                self.g_col[j.name] = col
+                col += 2
+                if j.welded or j.name in extra_g:
+                    self.gm_col[j.name] = col
+                    col += 1
+            elif j.kind == "slider":
+                self.s_col[j.name] = col
+                col += 1
+        self.d_col = []  # None: known, or acting through a clamped ground joint's moment
+        for d in mech.drives:
+            if d.member in kt or mech.joints[d.ground_joint].welded:
+                self.d_col.append(None)
+            else:
+                self.d_col.append(col)
+                col += 1
+        self.n_unk = col
+        moment_joints = {p[1] for p in self.m_col} | set(self.gm_col) | {p[1] for p in km}
+        self.moment_joints = [j for j in self.joints if j in moment_joints]
+        self.n_eq = 3 * len(self.members) + 2 * len(self.joints) + len(self.moment_joints)
+
+
+def _equations(mech, motion, lay: _Layout, inertia, gravity, joint_loads, member_moments,
+               known: KnownForces | None):
+    """The batched equations ``A x = b``: A (n, n_eq, n_unk), b (n, n_eq)."""
+    n = motion.n
+    kf = known.force if known is not None else {}
+    km = known.moment if known is not None else {}
+    kt = known.torque if known is not None else {}
+    midx = {m: i for i, m in enumerate(motion.member_names)}
+    jidx = {j: i for i, j in enumerate(lay.joints)}
+    A = np.zeros((n, lay.n_eq, lay.n_unk))
+    b = np.zeros((n, lay.n_eq))
     g = np.asarray(mech.gravity, dtype=float) if gravity else np.zeros(2)
+
+    def elastic(name, i):
+        arr = getattr(known, name) if known is not None else None
+        return 0.0 if arr is None else arr[:, i]
+
     # member equations
-    for i, mname in enumerate(members):
+    for i, mname in enumerate(lay.members):
         mass, J, _origin, _off = _member_mass(mech, mname)
         rc, _vc, ac = member_centre(mech, motion, mname)
         r0 = 3 * i
-        for p in pairs:
+        for p in lay.pairs:
             if p[0] != mname:
                 continue
-            c = f_col[p]
+            c = lay.f_col[p]
             A[:, r0, c] = 1.0
             A[:, r0 + 1, c + 1] = 1.0
             arm = motion.r[:, jidx[p[1]]] - rc
             A[:, r0 + 2, c] = -arm[:, 1]
             A[:, r0 + 2, c + 1] = arm[:, 0]
-            if p in m_col:
-                A[:, r0 + 2, m_col[p]] = 1.0
-        for k, d in enumerate(mech.drives):
-            if d.member == mname and d_col[k] is not None:
-                A[:, r0 + 2, d_col[k]] = 1.0
+            if p in lay.m_col:
+                A[:, r0 + 2, lay.m_col[p]] = 1.0
         rhs = np.zeros((n, 3))
+        for k, d in enumerate(mech.drives):
+            if d.member == mname and lay.d_col[k] is not None:
+                A[:, r0 + 2, lay.d_col[k]] = 1.0
+            elif d.member == mname and d.member in kt:
+                rhs[:, 2] -= kt[d.member]
         if inertia:
             rhs[:, :2] += mass * ac
             rhs[:, 2] += J * motion.alpha[:, midx[mname]]
+        rhs[:, :2] += mass * elastic("member_acceleration", midx[mname])
+        rhs[:, 2] += J * elastic("member_angular_acceleration", midx[mname])
         rhs[:, :2] -= mass * g
         if member_moments is not None:
             rhs[:, 2] -= member_moments[:, midx[mname]]
         b[:, r0:r0 + 3] = rhs
     # pin equations
-    r0 = 3 * len(members)
-    pm_mass = np.zeros(len(joints))
-    pm_J = np.zeros(len(joints))
+    r0 = 3 * len(lay.members)
+    pm_mass = np.zeros(len(lay.joints))
+    pm_J = np.zeros(len(lay.joints))
     for pm in mech.point_masses:
         pm_mass[jidx[pm.joint]] += pm.mass
         pm_J[jidx[pm.joint]] += pm.J
-    for name in passive:
+    for name in lay.passive:
         lk = mech.links[name]
         pm_mass[jidx[lk.a]] += 0.5 * lk.mass
         pm_mass[jidx[lk.b]] += 0.5 * lk.mass
-    weld_row = r0 + 2 * len(joints)
-    for jn, jname in enumerate(joints):
+    moment_row = {j: r0 + 2 * len(lay.joints) + k for k, j in enumerate(lay.moment_joints)}
+    for jn, jname in enumerate(lay.joints):
         jt = mech.joints[jname]
         rr = r0 + 2 * jn
-        for p in pairs:
-            if p[1] == jname:
-                c = f_col[p]
+        rhs = np.zeros((n, 2))
+        here = [p for p in lay.pairs if p[1] == jname]
+        for p in here:
+            if p in kf:
+                rhs += kf[p]
+            else:
+                c = lay.f_col[p]
                 A[:, rr, c] = -1.0
                 A[:, rr + 1, c + 1] = -1.0
-        if jname in g_col:
-            A[:, rr, g_col[jname]] = 1.0
-            A[:, rr + 1, g_col[jname] + 1] = 1.0
-        if jname in s_col:
+        if jname in lay.g_col:
+            A[:, rr, lay.g_col[jname]] = 1.0
+            A[:, rr + 1, lay.g_col[jname] + 1] = 1.0
+        if jname in lay.s_col:
             nrm = np.array([-jt.axis[1], jt.axis[0]])
-            A[:, rr, s_col[jname]] = nrm[0]
-            A[:, rr + 1, s_col[jname]] = nrm[1]
-        rhs = np.zeros((n, 2))
+            A[:, rr, lay.s_col[jname]] = nrm[0]
+            A[:, rr + 1, lay.s_col[jname]] = nrm[1]
         if inertia:
             rhs += pm_mass[jn] * motion.a[:, jn]
+        rhs += pm_mass[jn] * elastic("joint_acceleration", jn)
         rhs -= pm_mass[jn] * g
         if joint_loads is not None:
             rhs -= joint_loads[:, jn]
         b[:, rr:rr + 2] = rhs
-        if jt.welded:
-            for p in pairs:
-                if p[1] == jname:
-                    A[:, weld_row, m_col[p]] = -1.0
-            if jname in gm_col:
-                A[:, weld_row, gm_col[jname]] = 1.0
-            mem_here = [p[0] for p in pairs if p[1] == jname]
-            if inertia and mem_here:
-                b[:, weld_row] = pm_J[jn] * motion.alpha[:, midx[mem_here[0]]]
-            weld_row += 1
+        if jname in moment_row:
+            wr = moment_row[jname]
+            for p in here:
+                if p in lay.m_col:
+                    A[:, wr, lay.m_col[p]] = -1.0
+                elif p in km:
+                    b[:, wr] += km[p]
+            if jname in lay.gm_col:
+                A[:, wr, lay.gm_col[jname]] = 1.0
+            if inertia and here:
+                b[:, wr] += pm_J[jn] * motion.alpha[:, midx[here[0][0]]]
+            b[:, wr] += pm_J[jn] * elastic("joint_angular_acceleration", jn)
+    return A, b
+
+
+def _solve_square(mech, A, b, n_eq, n_unk):
+    """The statically determinate system: its solution and relative residual."""
     if n_unk != n_eq:
         kind = "statically indeterminate" if n_unk > n_eq else "under-constrained"
         raise KedError(f"{mech.name}: kinetostatics has {n_unk} unknown forces for {n_eq} equations "
@@ -258,22 +335,123 @@ def kinetostatics(mech: Mechanism, motion: Motion, *, inertia: bool = True,
         raise KedError(f"{mech.name}: kinetostatic equations are ill-conditioned (condition "
                        f"{np.max(cond):.3g}); the mechanism passes a toggle position or is "
                        "statically indeterminate")
-    force = np.stack([x[:, f_col[p]:f_col[p] + 2] for p in pairs], axis=1) if pairs else np.zeros((n, 0, 2))
-    moment = np.zeros((n, npair))
+    return x, rel
+
+
+def _solve_least_squares(mech, motion, lay: _Layout, A, b):
+    """Least-squares solution of the over-determined equations with known forces.
+
+    Moment rows are divided by a length of the mechanism and moment columns
+    multiplied by it, so that every row is a force [N]. The pins' balances
+    (a particle's, exact) weigh :data:`PIN_WEIGHT` times a member's: where a
+    pin's forces are unknown they balance it (Newton's third law through a
+    massless pin holds), and what the known forces leave over lands in the
+    members' balances and in the pins whose forces are all known.
+    """
+    n = A.shape[0]
+    r = motion.r
+    length = float(np.max(np.ptp(r.reshape(-1, 2), axis=0))) if r.size else 1.0
+    length = length if length > 0 else 1.0
+    pin0 = 3 * len(lay.members)
+    unit = np.ones(lay.n_eq)  # rows in [N]
+    unit[2:pin0:3] = 1.0 / length
+    unit[pin0 + 2 * len(lay.joints):] = 1.0 / length
+    weight = np.ones(lay.n_eq)
+    weight[pin0:] = PIN_WEIGHT
+    cols = np.ones(lay.n_unk)  # columns in [N]
+    for c in (*lay.m_col.values(), *lay.gm_col.values(), *(c for c in lay.d_col if c is not None)):
+        cols[c] = length
+    As = A * unit[:, None] * cols[None, :]
+    bs = b * unit
+    y = np.zeros((n, lay.n_unk))
+    if lay.n_unk:
+        U, s, Vt = np.linalg.svd(As * weight[:, None], full_matrices=False)
+        tiny = s[:, -1] <= 1e-10 * s[:, 0]
+        if np.any(tiny) or not np.all(np.isfinite(s)):
+            k = int(np.argmax(tiny))
+            raise KedError(f"{mech.name}: the forces left unknown by the elastic response are not unique "
+                           f"(at crank angle {np.degrees(motion.crank_angle[k]) % 360:.1f} deg): "
+                           "a toggle position, or a redundant support of a rigid member")
+        y = np.einsum("nji,nj->ni", Vt, np.einsum("nji,nj->ni", U, bs * weight) / s)
+    res = np.einsum("nij,nj->ni", As, y) - bs
+    size = max(float(np.max(np.abs(bs))) if bs.size else 0.0,
+               float(np.max(np.abs(As * y[:, None, :]))) if y.size else 0.0)
+    rel = float(np.max(np.abs(res)) / size) if size > 0 else 0.0
+    return y * cols, rel
+
+
+def kinetostatics(mech: Mechanism, motion: Motion, *, inertia: bool = True,
+                  gravity: bool = False, joint_loads: np.ndarray | None = None,
+                  member_moments: np.ndarray | None = None,
+                  known: KnownForces | None = None) -> JointForces:
+    """Joint forces of the rigid mechanism in dynamic equilibrium.
+
+    Parameters
+    ----------
+    mech : Mechanism
+        The mechanism.
+    motion : Motion
+        Its rigid-body motion (``n`` time nodes).
+    inertia : bool
+        Include the inertia of members and point masses (of the rigid-body
+        motion; the elastic accelerations of ``known`` always count).
+    gravity : bool
+        Include the weight of members and point masses (``mech.gravity``).
+    joint_loads : ndarray, shape (n, n_joints, 2), optional
+        Applied forces on the joint pins [N] (springs, loads, friction at the
+        rigid state), joints in ``motion.joint_names`` order.
+    member_moments : ndarray, shape (n, n_members), optional
+        Applied moments on the members [N m] (torsional springs), members in
+        ``motion.member_names`` order.
+    known : KnownForces, optional
+        Forces an elastic response fixes (the flexible links' end forces,
+        drive torques) and the elastic accelerations; the other forces then
+        follow by least squares, and ``residual`` is the imbalance of the
+        equations left over.
+
+    Returns
+    -------
+    JointForces
+
+    Raises
+    ------
+    KedError
+        The mechanism is statically indeterminate or under-constrained, so
+        the joint forces are not unique.
+    """
+    n = motion.n
+    lay = _Layout(mech, motion, known)
+    A, b = _equations(mech, motion, lay, inertia, gravity, joint_loads, member_moments, known)
+    if known is None:
+        x, rel = _solve_square(mech, A, b, lay.n_eq, lay.n_unk)
+    else:
+        x, rel = _solve_least_squares(mech, motion, lay, A, b)
+    kf = known.force if known is not None else {}
+    km = known.moment if known is not None else {}
+    kt = known.torque if known is not None else {}
+    pairs = lay.pairs
+    force = np.zeros((n, len(pairs), 2))
+    moment = np.zeros((n, len(pairs)))
     for k, p in enumerate(pairs):
-        if p in m_col:
-            moment[:, k] = x[:, m_col[p]]
+        force[:, k] = kf[p] if p in kf else x[:, lay.f_col[p]:lay.f_col[p] + 2]
+        if p in lay.m_col:
+            moment[:, k] = x[:, lay.m_col[p]]
+        elif p in km:
+            moment[:, k] = km[p]
     torque = np.zeros((n, len(mech.drives)))
     for k, d in enumerate(mech.drives):
-        if d_col[k] is not None:
-            torque[:, k] = x[:, d_col[k]]
+        if d.member in kt:
+            torque[:, k] = kt[d.member]
+        elif lay.d_col[k] is not None:
+            torque[:, k] = x[:, lay.d_col[k]]
         else:
             torque[:, k] = moment[:, pairs.index((d.member, d.ground_joint))]
-    frame = {j: x[:, c:c + 2] for j, c in g_col.items()}
-    for j, c in s_col.items():
+    frame = {j: x[:, c:c + 2] for j, c in lay.g_col.items()}
+    for j, c in lay.s_col.items():
         jt = mech.joints[j]
         frame[j] = x[:, c:c + 1] * np.array([-jt.axis[1], jt.axis[0]])
-    return JointForces(tuple(pairs), force, moment, torque, frame, rel)
+    frame_moment = {j: x[:, c] for j, c in lay.gm_col.items()}
+    return JointForces(tuple(pairs), force, moment, torque, frame, rel, frame_moment)
 
 
 def link_axial_force(mech: Mechanism, motion: Motion, forces: JointForces, link: str,
