@@ -47,7 +47,7 @@ def test_default_run_end_to_end(tmp_path):
         assert heading in text, heading
     dest = tmp_path / "kedfem-out"
     for name in ("response.csv", "peaks.csv", "frequencies.csv", "fatigue.csv", "histories.csv", "histories.npz",
-                 "result.npz", "displacement.png",
+                 "loads.csv", "loads.png", "result.npz", "displacement.png",
                  "link_response.png", "frequencies.png", "floquet.png", "response/response.pvd", "modes/modes.pvd",
                  "summary.txt", "kedfem-run.json"):
         assert (dest / name).is_file(), name
@@ -88,8 +88,9 @@ def test_small_run_in_process_honours_flags(tmp_path, capsys):
     assert "zoh, 24 time elements (steps given)" in out and "600 rpm (62.8319 rad/s)" in out
     assert "effects     inertia, coupling" in out
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fatigue.csv", "frequencies.csv", "histories.csv",
-                                                          "histories.npz", "kedfem-run.json", "peaks.csv",
-                                                          "response.csv", "result.npz", "summary.txt"]
+                                                          "histories.npz", "kedfem-run.json", "loads.csv",
+                                                          "peaks.csv", "response.csv", "result.npz",
+                                                          "summary.txt"]
 
 
 def test_scene_file_outputs_and_strict(tmp_path, capsys):

@@ -125,7 +125,7 @@ def test_res_write_writes_what_the_cli_writes(folder):
     rep = res.write(folder / "out", vtk=False, plots=False)
     names = sorted(p.name for p in rep.files)
     assert names == sorted(["response.csv", "peaks.csv", "frequencies.csv", "fatigue.csv", "histories.csv",
-                            "histories.npz", "result.npz", "summary.txt"])
+                            "histories.npz", "loads.csv", "result.npz", "summary.txt"])
     assert all(p.is_file() for p in rep.files)
     assert "my crank-rocker" in (folder / "out" / "summary.txt").read_text()
     assert len(repr(res)) < 300 and "my crank-rocker" in repr(res)
