@@ -22,3 +22,6 @@ from .analysis.defaults import default_scene
 from .io.scenefile import SceneFileError, load_scene, scene_from_dict
 from .fe.reduction import CraigBampton
 from .analysis.mesh_check import MeshError, mesh_error
+from .analysis.campbell import CampbellResult, Crossing, campbell
+from .analysis.critical import CriticalSpeed, critical_speed
+from .io.design_plots import StabilityMap, stability_map

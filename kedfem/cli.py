@@ -40,7 +40,7 @@ __all__ = ["main", "build_parser"]
 
 log = logging.getLogger(__name__)
 
-COMMANDS = ("run", "validate", "sweep", "export", "list")
+COMMANDS = ("run", "validate", "sweep", "export", "list", "campbell", "critical", "stability-map")
 EXIT_ERROR = 2
 EXIT_STRICT = 3
 
@@ -460,6 +460,98 @@ def _cmd_list(args) -> int:
     return 0
 
 
+# ------------------------------------------------------ design decisions
+def _rpm_values(text: str, name: str):
+    """``START:STOP:NUM`` or ``V1,V2,...`` [rev/min] -> speeds [rad/s] (an InputError names ``name``)."""
+    import numpy as np
+    from .io.sweep import parse_axis
+    _, vals = parse_axis(f"{name}={text}")
+    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in vals):
+        raise InputError(f"{name}: speeds must be numbers [rev/min], got {text!r}")
+    return np.asarray(vals, dtype=float) * (2 * math.pi / 60)
+
+
+def _publish(out_dir: Path, command: str, source: str, write) -> None:
+    """Write the files of ``write(folder) -> [paths]`` into ``out_dir`` (published whole) and list them."""
+    from .io.outdir import RunFolder
+    from .io.report import relative
+    with RunFolder(out_dir, command, dict(scene=source)) as rf:
+        files = [out_dir / Path(f).relative_to(rf.path) for f in write(rf.path)]
+    print(f"files in {out_dir}/")
+    for f in files:
+        print(f"  {relative(f, out_dir)}")
+    print(f"  {MANIFEST} (run {rf.run_id})")
+
+
+def _cmd_campbell(args) -> int:
+    from .analysis.campbell import campbell
+    from .io.report import check_out_dir
+    ld = _load(args.scene, _overrides(args))
+    speeds = _rpm_values(args.speeds, "--speeds")
+    out_dir = Path(args.out) if args.out else ld.outputs.dir
+    check_out_dir(out_dir)
+    check_replaceable(out_dir)
+    with _report_warnings():
+        res = campbell(ld.scene, speeds, n_modes=args.n_modes, harmonics=args.harmonics, nodes=args.nodes,
+                       method="solve" if args.from_solve else "modal")
+    print(res.describe())
+
+    def write(folder):
+        out = [res.to_csv(folder / "campbell.csv"), res.crossings_to_csv(folder / "campbell_crossings.csv")]
+        return out + ([] if args.no_plots else [res.plot(folder / "campbell.png")])
+
+    _publish(out_dir, "campbell", ld.source, write)
+    return 0
+
+
+def _cmd_critical(args) -> int:
+    from .analysis.critical import critical_speed
+    ld = _load(args.scene, _overrides(args))
+    rpm = 2 * math.pi / 60
+    print(f"kedfem {__version__}: {args.kind} critical speed of {ld.scene.name or ld.scene.mech.name} in "
+          f"{args.lo:g} .. {args.hi:g} rpm ...", flush=True)
+    with _report_warnings():
+        res = critical_speed(ld.scene, args.lo * rpm, args.hi * rpm, rtol=args.tol, kind=args.kind,
+                             linear=not args.nonlinear, scan=args.scan, max_solves=args.max_solves)
+    unit = "rho" if args.kind == "parametric" else "f1 [Hz]"
+    print(f"  {'speed [rpm]':>12s} {unit:>12s} {'+-':>8s}")
+    for e in res.evaluations:
+        print(f"  {e.rpm:12.3f} {e.value:12.6g} {e.error:8.1e}")
+    print(res.describe())
+    return 0 if res.met else 1
+
+
+def _cmd_stability_map(args) -> int:
+    from .io.design_plots import stability_map
+    from .io.report import check_out_dir
+    from .io.sweep import parse_axis
+    ld = _load(args.scene, _overrides(args))
+    speeds = _rpm_values(args.speeds, "--speeds")
+    key, values = parse_axis(args.param)
+    out_dir = Path(args.out) if args.out else ld.outputs.dir
+    check_out_dir(out_dir)
+    check_replaceable(out_dir)
+    print(f"kedfem {__version__}: stability map of {ld.scene.name or ld.scene.mech.name}, {speeds.size} speeds x "
+          f"{len(values)} values of {key} on {args.scheduler} ...", flush=True)
+    with _report_warnings():
+        smap = stability_map(ld.data, speeds, key, list(values), scheduler=args.scheduler,
+                             max_workers=args.workers, progress=False if args.no_progress else None)
+    print(f"  {key:>24s}  first onset on the grid [rpm]")
+    for v, s in zip(smap.values, smap.onsets()):
+        print(f"  {v:24.6g}  {s * 60 / (2 * math.pi):.1f}" if math.isfinite(s) else f"  {v:24.6g}  none")
+    for v, s, why in smap.failures:
+        print(f"  FAILED {key} = {v:g} at {s * 60 / (2 * math.pi):.1f} rpm: {why}")
+
+    def write(folder):
+        out = [smap.to_csv(folder / "stability_map.csv")]
+        if not args.no_plots and smap.values.size >= 2 and smap.speeds.size >= 2:
+            out.append(smap.plot(folder / "stability_map.png"))
+        return out
+
+    _publish(out_dir, "stability-map", ld.source, write)
+    return 1 if smap.failures else 0
+
+
 # ---------------------------------------------------------------- parser
 def build_parser() -> argparse.ArgumentParser:
     """The ``kedfem`` argument parser."""
@@ -550,6 +642,51 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--frame", type=_int_range(0, 10**6), metavar="K",
                    help="written frame to render (default: largest displacement)")
     e.set_defaults(func=_cmd_export)
+
+    c = sub.add_parser("campbell", parents=[common, scene], help="Campbell diagram: frequency bands vs speed, resonances",
+                       description="Natural-frequency bands over the cycle (min, mean, max per mode) at each speed "
+                       "against the harmonics k x crank frequency; lists where a harmonic crosses a band and writes "
+                       "campbell.csv, campbell_crossings.csv and campbell.png.")
+    c.add_argument("--speeds", required=True, metavar="START:STOP:NUM",
+                   help="crank speeds [rev/min]: START:STOP:NUM or V1,V2,...")
+    c.add_argument("--n-modes", type=_int_range(1, 24), default=4, metavar="N", help="modes (default 4)")
+    c.add_argument("--harmonics", type=_int_range(1, 100), default=6, metavar="K", help="harmonic lines (default 6)")
+    c.add_argument("--nodes", type=_int_range(3, 100_000), default=36, metavar="N",
+                   help="crank positions per cycle (default 36)")
+    c.add_argument("--from-solve", action="store_true",
+                   help="frequencies of a periodic solve per speed (default: modal analysis on the rigid-body motion)")
+    c.add_argument("--no-plots", action="store_true", help="no plot")
+    c.set_defaults(func=_cmd_campbell)
+
+    k = sub.add_parser("critical", parents=[common, scene], help="critical speed: onset of instability or buckling",
+                       description="Bracket and refine the speed where the largest Floquet multiplier crosses 1 "
+                       "(parametric) or the lowest modal eigenvalue over the cycle crosses 0 (buckling). Exit 1 if "
+                       "the tolerance was not met within --max-solves.")
+    k.add_argument("--lo", type=_positive_float, required=True, metavar="RPM", help="lower end of the bracket [rev/min]")
+    k.add_argument("--hi", type=_positive_float, required=True, metavar="RPM", help="upper end of the bracket [rev/min]")
+    k.add_argument("--kind", choices=("parametric", "buckling"), default="parametric")
+    k.add_argument("--tol", type=_rtol_arg, default=5e-3, metavar="TOL",
+                   help="relative tolerance on the critical speed (default 5e-3)")
+    k.add_argument("--scan", type=_int_range(0, 1000), default=0, metavar="N",
+                   help="speeds scanned upward inside the bracket first (finds the lowest crossing)")
+    k.add_argument("--max-solves", type=_int_range(3, 1000), default=14, metavar="N", help="most solves (default 14)")
+    k.add_argument("--nonlinear", action="store_true",
+                   help="keep geometric_nonlinearity (default: the linearised equations)")
+    k.set_defaults(func=_cmd_critical)
+
+    m = sub.add_parser("stability-map", parents=[common, scene], help="spectral radius over speed x a parameter",
+                       description="The largest Floquet multiplier over a grid of crank speed x one scene key, "
+                       "solved in parallel; writes stability_map.csv and stability_map.png (unstable region "
+                       "hatched, the rho = 1 contour).")
+    m.add_argument("--speeds", required=True, metavar="START:STOP:NUM", help="crank speeds [rev/min]")
+    m.add_argument("--param", required=True, metavar="KEY=VALUES",
+                   help="the other axis: a scene key and its values (mechanism.coupler_EI=0.3:2.4:8, damping.zeta=...)")
+    m.add_argument("--scheduler", default="processes", metavar="WHERE",
+                   help="processes (default), serial, local (Dask LocalCluster) or a Dask address tcp://host:port")
+    m.add_argument("--workers", type=_int_range(1, 1024), metavar="N", help="workers to start (default: CPUs)")
+    m.add_argument("--no-plots", action="store_true", help="no plot")
+    m.add_argument("--no-progress", action="store_true", help="no progress bar")
+    m.set_defaults(func=_cmd_stability_map)
 
     li = sub.add_parser("list", parents=[common], help="mechanisms, their parameters, and effects",
                         description="List the mechanisms with their parameters and preset scenes, and the effects.")

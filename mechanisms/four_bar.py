@@ -24,7 +24,8 @@ from kedfem.catalogue import Preset
 
 DEFAULTS = dict(ground=0.254, crank=0.108, coupler=0.2794, follower=0.2705, speed=2 * math.pi * 200 / 60,
                 elements=4, crank_angle=0.0, joint_mass=0.042, E=7.1e10, rho=2714.0,
-                crank_A=1.0774e-4, crank_EI=11.472, link_A=4.0645e-5, link_EI=0.616, flexible_crank=True)
+                crank_A=1.0774e-4, crank_EI=11.472, link_A=4.0645e-5, link_EI=0.616, flexible_crank=True,
+                coupler_EI=0.0)
 #: Preset scene. The flexible links meet at pins, so the axial forces that stiffen
 #: them are the actual (elastic) ones, which near resonance differ from the
 #: kinetostatic ones: ``geometric_nonlinearity``. Without it the peaks are 1-2.4 %
@@ -47,12 +48,17 @@ def _coupler_point(A, O4, coupler, follower, crank_angle_name="crank_angle"):
     return A + x * d / dist + h * n  # open (upper) branch
 
 
+def _strip(A: float, EI: float, E: float) -> kf.Section:
+    """Section of a rectangular strip of area ``A`` [m^2] and bending stiffness ``EI`` [N m^2]."""
+    return kf.Section(A=A, I=EI / E, c=0.5 * math.sqrt(12 * EI / E / A))
+
+
 def build(ground: float = 0.254, crank: float = 0.108, coupler: float = 0.2794,
           follower: float = 0.2705, speed: float = 2 * math.pi * 200 / 60, elements: int = 4,
           crank_angle: float = 0.0, joint_mass: float = 0.042, E: float = 7.1e10,
           rho: float = 2714.0, crank_A: float = 1.0774e-4, crank_EI: float = 11.472,
           link_A: float = 4.0645e-5, link_EI: float = 0.616,
-          flexible_crank: bool = True) -> kf.Mechanism:
+          flexible_crank: bool = True, coupler_EI: float = 0.0) -> kf.Mechanism:
     """Four-bar linkage with flexible crank, coupler and follower.
 
     Parameters
@@ -73,15 +79,22 @@ def build(ground: float = 0.254, crank: float = 0.108, coupler: float = 0.2794,
         Sections of the crank and of coupler/follower: area [m^2], EI [N m^2].
     flexible_crank : bool
         False makes the crank rigid.
+    coupler_EI : float
+        Bending stiffness of the coupler alone [N m^2] (0: ``link_EI``, the default), its area
+        staying ``link_A``: to sweep the coupler's stiffness by itself.
     """
     for name, v in (("ground", ground), ("crank", crank), ("coupler", coupler), ("follower", follower)):
         if not v > 0:
             raise kf.InputError(f"four_bar: {name} must be a length > 0 m, got {v!r}")
+    if not coupler_EI >= 0:
+        raise kf.InputError(f"four_bar: coupler_EI must be a bending stiffness > 0 N m^2 (or 0: link_EI), "
+                            f"got {coupler_EI!r}")
     mat = kf.Material(E=E, rho=rho)
     # the published A and EI are those of 25.4 mm wide rectangular strips (h = sqrt(12 I / A):
     # 4.24 mm crank, 1.60 mm coupler and follower); the extreme fibre is at c = h / 2
-    sec_crank = kf.Section(A=crank_A, I=crank_EI / E, c=0.5 * math.sqrt(12 * crank_EI / E / crank_A))
-    sec_link = kf.Section(A=link_A, I=link_EI / E, c=0.5 * math.sqrt(12 * link_EI / E / link_A))
+    sec_crank = _strip(crank_A, crank_EI, E)
+    sec_link = _strip(link_A, link_EI, E)
+    sec_coupler = _strip(link_A, coupler_EI, E) if coupler_EI > 0 else sec_link
     A = np.array([crank * math.cos(crank_angle), crank * math.sin(crank_angle)])
     O4 = np.array([ground, 0.0])
     B = _coupler_point(A, O4, coupler, follower)
@@ -94,7 +107,7 @@ def build(ground: float = 0.254, crank: float = 0.108, coupler: float = 0.2794,
         m.link("crank", "O2", "A", material=mat, section=sec_crank, elements=elements)
     else:
         m.link("crank", "O2", "A", rigid=True, material=mat, section=sec_crank)
-    m.link("coupler", "A", "B", material=mat, section=sec_link, elements=elements)
+    m.link("coupler", "A", "B", material=mat, section=sec_coupler, elements=elements)
     m.link("follower", "O4", "B", material=mat, section=sec_link, elements=elements)
     if joint_mass > 0:
         m.point_mass("A", joint_mass)

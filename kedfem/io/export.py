@@ -13,20 +13,29 @@ VTK layout (one ``.vtu`` per written time node, 3-D points with ``z = 0``):
   nodes (together a polyline of the link's nodes);
 * rigid links: one line between their joints; bodies: a polygon through their
   joints (a line for two joints); springs between two joints: a line;
+  springs to the frame: a line from a fixed anchor point (behind the joint
+  along the spring's axis, by 8 % of the mechanism's size) to the joint;
+* joints and torsional springs: one extra point each, after the points of
+  the parts and in no cell (so every cell stays a line or polygon), marked
+  by the point data ``symbol`` (:data:`SYMBOLS`); the renderer draws them,
+  ParaView shows them with *Glyph* (masked on ``symbol > 0``);
 * points: rigid-body position plus ``scale`` times the elastic displacement;
 * point data: ``displacement`` (elastic, 3-vector, [m], unscaled),
   ``position`` (total position, rigid + elastic, [m]),
-  ``nodal_bending_moment`` [N m] and ``nodal_stress`` [Pa];
+  ``nodal_bending_moment`` [N m] and ``nodal_stress`` [Pa]; ``symbol``
+  (int, 0 on the points of the parts) and ``slider_axis`` (unit direction
+  of a slider's line at its symbol point, 0 elsewhere);
 * cell data: ``axial_force`` [N], ``bending_moment`` [N m] (mean of the
-  element's end nodes), ``stress`` [Pa] (larger of the end nodes) and
-  ``part_id``;
+  element's end nodes), ``stress`` [Pa] (larger of the end nodes),
+  ``part_id`` and ``part_kind`` (:data:`PART_KINDS`);
 * field data: ``time`` [s], ``crank_angle`` [rad], ``scale``, ``frame``.
 
 Rigid parts and springs carry **NaN** section forces and stresses: the model
 does not compute them (they are not zero), and ParaView draws NaN in its
 "NaN colour", so they are not mistaken for unloaded links. The same for
 flexible links whose section has no extreme-fibre distance ``c`` (stress).
-The ``.pvd`` file lists the part ids in a comment.
+The ``.pvd`` file lists the part ids and the codes of ``part_kind`` and
+``symbol`` in a comment.
 
 meshio, matplotlib and pyvista are imported lazily, inside the functions
 that need them.
@@ -53,7 +62,7 @@ from ..errors import InputError, KedError, OptionalDependencyError
 
 __all__ = ["OptionalDependencyError", "require", "atomic_path", "write_response_csv", "write_peaks_csv",
            "write_frequencies_csv", "write_npz", "Part", "MechanismMesh", "mechanism_mesh", "auto_scale",
-           "VtkSeries", "write_vtk_series", "write_mode_shapes", "dof_unit"]
+           "VtkSeries", "write_vtk_series", "write_mode_shapes", "dof_unit", "PART_KINDS", "SYMBOLS"]
 
 log = logging.getLogger(__name__)
 
@@ -219,7 +228,7 @@ class Part:
     """
 
     name: str
-    kind: str            # "flexible link", "rigid link", "body", "spring"
+    kind: str            # a key of PART_KINDS, or "joints" / "torsional springs" (points only, no cells)
     part_id: int
     points: slice
     cells: slice
@@ -238,8 +247,10 @@ class MechanismMesh:
         Elastic displacements [m] (or a dimensionless mode shape).
     cells : tuple of (str, ndarray)
         Cells in global order: ``("line", (2,))`` or ``("polygon", (k,))`` connectivity.
-    point_scalars : dict of str to ndarray, shape (n, P)
+    point_scalars : dict of str to ndarray, shape (n, P) or (n, P, 3)
+        Includes the int ``symbol`` and the ``slider_axis`` vectors.
     cell_scalars : dict of str to ndarray, shape (n, C)
+        Includes the int ``part_id`` and ``part_kind``.
     """
 
     parts: tuple[Part, ...]
@@ -254,6 +265,32 @@ class MechanismMesh:
             if p.name == name:
                 return p
         raise InputError(f"no part '{name}' in the mesh (parts: {', '.join(p.name for p in self.parts)})")
+
+
+#: Cell data ``part_kind``: what a cell belongs to.
+PART_KINDS = {"flexible link": 1, "rigid link": 2, "body": 3, "spring": 4, "spring to frame": 5}
+
+#: Point data ``symbol``: what the renderer draws at a point (0: a point of a part, nothing).
+SYMBOLS = {"revolute joint": 1, "welded joint": 2, "ground": 3, "clamped ground": 4, "slider": 5,
+           "torsional spring": 6, "frame anchor": 7}
+
+#: Parts drawn as members (links, bodies, springs between joints): they set the deformation scale.
+_MEMBER_KINDS = ("flexible link", "rigid link", "body", "spring")
+
+#: Distance of a frame spring's anchor behind its joint, as a fraction of the mechanism's size.
+_ANCHOR_FRACTION = 0.08
+
+
+def _joint_symbol(joint) -> int:
+    if joint.kind == "ground":
+        return SYMBOLS["clamped ground" if joint.welded else "ground"]
+    if joint.kind == "slider":
+        return SYMBOLS["slider"]
+    return SYMBOLS["welded joint" if joint.welded else "revolute joint"]
+
+
+def _legend(codes: dict) -> str:
+    return ", ".join(f"{v} = {k}" for k, v in codes.items())
 
 
 def _polygon_order(points: np.ndarray) -> np.ndarray:
@@ -285,16 +322,17 @@ def mechanism_mesh(res, U: np.ndarray | None = None) -> MechanismMesh:
     def jdisp(j):
         return res.joint_displacement(j, U=U)
 
-    X, D, Pm, Ps = [], [], [], []
+    X, D, Pm, Ps, Sym = [], [], [], [], []
     cells, cAx, cM, cS, cPart = [], [], [], [], []
     parts = []
     npts = 0
 
-    def add(name, kind, x0, d, pm=None, ps=None, conn=(), ax=None):
+    def add(name, kind, x0, d, pm=None, ps=None, conn=(), ax=None, symbol=None):
         nonlocal npts
         P = x0.shape[1]
         X.append(x0)
         D.append(d)
+        Sym.append(np.zeros(P, dtype=np.int32) if symbol is None else np.asarray(symbol, dtype=np.int32))
         Pm.append(pm if pm is not None else np.full((n, P), np.nan))
         Ps.append(ps if ps is not None else np.full((n, P), np.nan))
         c0 = len(cells)
@@ -347,13 +385,42 @@ def mechanism_mesh(res, U: np.ndarray | None = None) -> MechanismMesh:
         add(sp.name, "spring", x0, d, conn=[("line", (0, 1))])
     if not parts:
         raise InputError(f"mechanism '{mech.name}' has nothing to draw")
+    # the symbols, after the members (their point and cell indices stay as they were)
+    r = np.concatenate(X, axis=1).reshape(-1, 2)
+    size = float(np.linalg.norm(r.max(axis=0) - r.min(axis=0))) or 1.0
+    for sp in mech.springs.values():
+        if sp.b is not None:
+            continue
+        pa, axis = jpos(sp.a), np.asarray(sp.axis, float)
+        s = pa @ axis
+        anchor = pa.mean(axis=0) + (s.min() - s.mean() - _ANCHOR_FRACTION * size) * axis
+        x0 = np.stack([np.broadcast_to(anchor, pa.shape), pa], axis=1)
+        d = np.stack([np.zeros_like(pa), jdisp(sp.a)], axis=1)
+        add(sp.name, "spring to frame", x0, d, conn=[("line", (0, 1))], symbol=(SYMBOLS["frame anchor"], 0))
+    js = list(mech.joints.values())
+    add("joints", "joints", np.stack([jpos(j.name) for j in js], axis=1),
+        np.stack([jdisp(j.name) for j in js], axis=1), symbol=[_joint_symbol(j) for j in js])
+    ts = list(mech.torsional_springs.values())
+    if ts:
+        add("torsional springs", "torsional springs", np.stack([jpos(t.joint) for t in ts], axis=1),
+            np.stack([jdisp(t.joint) for t in ts], axis=1), symbol=[SYMBOLS["torsional spring"]] * len(ts))
+    sym = np.concatenate(Sym)
+    slider_axis = np.zeros((sym.size, 3))
+    joints_part = next(p for p in parts if p.kind == "joints")
+    for i, j in enumerate(js):
+        if j.kind == "slider":
+            slider_axis[joints_part.points.start + i, :2] = j.axis
     C = len(cells)
+    P = sym.size
+    part_kind = np.array([PART_KINDS[parts[i].kind] for i in cPart], dtype=np.int32)
     return MechanismMesh(
         tuple(parts), np.concatenate(X, axis=1), np.concatenate(D, axis=1), tuple(cells),
-        {"nodal_bending_moment": np.concatenate(Pm, axis=1), "nodal_stress": np.concatenate(Ps, axis=1)},
+        {"nodal_bending_moment": np.concatenate(Pm, axis=1), "nodal_stress": np.concatenate(Ps, axis=1),
+         "symbol": np.broadcast_to(sym, (n, P)), "slider_axis": np.broadcast_to(slider_axis, (n, P, 3))},
         {"axial_force": np.stack(cAx, axis=1).reshape(n, C), "bending_moment": np.stack(cM, axis=1).reshape(n, C),
          "stress": np.stack(cS, axis=1).reshape(n, C),
-         "part_id": np.broadcast_to(np.array(cPart, dtype=np.int64), (n, C))})
+         "part_id": np.broadcast_to(np.array(cPart, dtype=np.int64), (n, C)),
+         "part_kind": np.broadcast_to(part_kind, (n, C))})
 
 
 def _nice(x: float) -> float:
@@ -363,15 +430,24 @@ def _nice(x: float) -> float:
     return (5 if m >= 5 else 2 if m >= 2 else 1) * 10.0**e
 
 
+def _member_points(mesh: MechanismMesh) -> np.ndarray:
+    """Indices of the points of the members (all points when no part is a member)."""
+    idx = [np.arange(p.points.start, p.points.stop) for p in mesh.parts if p.kind in _MEMBER_KINDS]
+    return np.concatenate(idx) if idx else np.arange(mesh.rigid.shape[1])
+
+
 def auto_scale(mesh: MechanismMesh, fraction: float = 0.05) -> float:
     """Deformation scale that makes the largest displacement ``fraction`` of the mechanism's size.
 
     The size is the diagonal of the bounding box of the rigid-body motion
     over the cycle. The scale is rounded down to 1, 2 or 5 times a power of
     ten, and never below 1 (deflections already that large are drawn true).
+    Only the members count (links, bodies, springs between joints): the
+    symbols' points (joints, frame-spring anchors) change neither.
     """
-    dmax = float(np.max(np.linalg.norm(mesh.displacement, axis=-1)))
-    r = mesh.rigid.reshape(-1, 2)
+    idx = _member_points(mesh)
+    dmax = float(np.max(np.linalg.norm(mesh.displacement[:, idx], axis=-1)))
+    r = mesh.rigid[:, idx].reshape(-1, 2)
     size = float(np.linalg.norm(r.max(axis=0) - r.min(axis=0)))
     if not (dmax > 0 and size > 0 and math.isfinite(dmax)):
         return 1.0
@@ -487,6 +563,10 @@ class VtkSeries:
     parts : tuple of Part
     peak_frame : int
         Position in ``files`` of the frame with the largest elastic displacement.
+    crank_angles : ndarray, optional
+        Crank angle of each file [rad], absolute (as
+        :attr:`PeriodicResult.crank_angle`; mode shapes: that of their time
+        node). None for a series described without them.
     """
 
     pvd: Path
@@ -496,6 +576,7 @@ class VtkSeries:
     scale: float
     parts: tuple[Part, ...]
     peak_frame: int
+    crank_angles: np.ndarray | None = None
 
 
 def _pvd_text(entries, comment: str) -> str:
@@ -548,8 +629,9 @@ def _write_series(out_dir: Path, stem: str, frames_iter, entries_times, comment:
 
 
 def _parts_comment(mesh: MechanismMesh, what: str) -> str:
-    ids = "; ".join(f"{p.part_id} = {p.name} ({p.kind})" for p in mesh.parts)
-    return f"kedfem {what}. part_id: {ids}"
+    ids = "; ".join(f"{p.part_id} = {p.name} ({p.kind})" for p in mesh.parts if p.cells.stop > p.cells.start)
+    return (f"kedfem {what}. part_id: {ids}. part_kind: {_legend(PART_KINDS)}. "
+            f"symbol (points in no cell): {_legend(SYMBOLS)}")
 
 
 def write_vtk_series(res, out_dir, *, stem: str = "response", scale: float | None = None,
@@ -596,7 +678,8 @@ def write_vtk_series(res, out_dir, *, stem: str = "response", scale: float | Non
     pvd, files = _write_series(Path(out_dir), stem, gen(), res.t[frames], comment)
     dnorm = np.linalg.norm(mesh.displacement[frames], axis=-1).max(axis=1)
     log.info("wrote %s (%d frames, scale %g)", pvd, len(files), scale)
-    return VtkSeries(pvd, tuple(files), res.t[frames].copy(), frames, scale, mesh.parts, int(np.argmax(dnorm)))
+    return VtkSeries(pvd, tuple(files), res.t[frames].copy(), frames, scale, mesh.parts, int(np.argmax(dnorm)),
+                     np.asarray(res.crank_angle, float)[frames].copy())
 
 
 def write_mode_shapes(res, out_dir, *, n_modes: int = 4, node: int = 0, stem: str = "modes",
@@ -644,4 +727,5 @@ def write_mode_shapes(res, out_dir, *, n_modes: int = 4, node: int = 0, stem: st
                                    + ", ".join(f"{x:.6g}" for x in f))
     modes = np.arange(1, phi.shape[1] + 1, dtype=float)
     pvd, files = _write_series(Path(out_dir), stem, gen(), modes, comment)
-    return VtkSeries(pvd, tuple(files), modes, np.full(len(files), node), s, base.parts, 0)
+    return VtkSeries(pvd, tuple(files), modes, np.full(len(files), node), s, base.parts, 0,
+                     np.full(len(files), float(res.crank_angle[node])))

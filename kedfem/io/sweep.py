@@ -251,7 +251,7 @@ def run_point(point: SweepPoint, frequencies: bool = True, pin: bool = True) -> 
     """
     import warnings
 
-    from ..errors import ConvergenceWarning, InstabilityWarning
+    from ..errors import ConvergenceWarning, InstabilityWarning, PlausibilityWarning
     from ..analysis.pipeline import solve
     from .scenefile import scene_from_dict
     if pin:
@@ -262,6 +262,8 @@ def run_point(point: SweepPoint, frequencies: bool = True, pin: bool = True) -> 
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ConvergenceWarning)
             warnings.simplefilter("ignore", InstabilityWarning)
+            # the table has the peaks and the stability; a warning per point from every worker is noise
+            warnings.simplefilter("ignore", PlausibilityWarning)
             res = solve(scene, progress=False)  # the sweep has its own bar
         fund = res.frequencies(1).fundamental if frequencies else float("nan")
         mu = np.abs(np.asarray(res.floquet_multipliers))
