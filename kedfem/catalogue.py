@@ -46,7 +46,7 @@ from pathlib import Path
 from typing import Any
 
 from .errors import InputError, did_you_mean
-from .fe.effects import ModalDamping
+from .fe.effects import LINEAR_EFFECTS, ModalDamping
 
 __all__ = ["GROUP", "SOLVER_KEYS", "Preset", "MechanismInfo", "available", "get", "info", "build", "register",
            "is_reference", "is_file_reference", "canonical", "reference_of", "for_instance", "parameters"]
@@ -72,7 +72,9 @@ class Preset:
     steps : int, optional
         Fixed number of time elements (None: as many as the tolerance needs).
     effects : tuple of str
-        Effects to assemble (``kedfem list``).
+        Effects to assemble (``kedfem list``); default the linear KED set, rigid-body inertia,
+        the rigid-elastic coupling and the links' stiffening by their kinetostatic axial forces
+        (:data:`kedfem.fe.effects.LINEAR_EFFECTS`).
     damping : Rayleigh or ModalDamping or None
         Damping model (None: undamped).
     hold : str, optional
@@ -86,7 +88,7 @@ class Preset:
     """
 
     steps: int | None = None
-    effects: tuple[str, ...] = ("inertia", "coupling")
+    effects: tuple[str, ...] = LINEAR_EFFECTS
     damping: Any = field(default_factory=lambda: ModalDamping(0.02))
     hold: str | None = None
     solver: tuple[tuple[str, Any], ...] = ()

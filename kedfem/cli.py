@@ -664,7 +664,9 @@ def build_parser() -> argparse.ArgumentParser:
                        "the tolerance was not met within --max-solves.")
     k.add_argument("--lo", type=_positive_float, required=True, metavar="RPM", help="lower end of the bracket [rev/min]")
     k.add_argument("--hi", type=_positive_float, required=True, metavar="RPM", help="upper end of the bracket [rev/min]")
-    k.add_argument("--kind", choices=("parametric", "buckling"), default="parametric")
+    k.add_argument("--kind", choices=("parametric", "buckling"), default="parametric",
+                   help="parametric: the largest Floquet multiplier crosses 1; buckling: the lowest stiffness "
+                   "eigenvalue over the cycle crosses 0 (default parametric)")
     k.add_argument("--tol", type=_rtol_arg, default=5e-3, metavar="TOL",
                    help="relative tolerance on the critical speed (default 5e-3)")
     k.add_argument("--scan", type=_int_range(0, 1000), default=0, metavar="N",

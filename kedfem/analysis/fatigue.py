@@ -14,7 +14,7 @@ stress; the mean ``sigma_m = (max + min) / 2`` and the alternating stress ``sigm
 maximum and one minimum). With a :class:`kedfem.model.materials.Material` that states its
 strengths the safety factors per link are (Shigley's forms, normal stress only, shear ignored):
 
-- yield: ``n_y = S_y / max |sigma|``;
+- yield: ``n_y = S_y / max |sigma|`` (with the peak stress refined between stations);
 - Goodman: ``1 / n = sigma_a / S_e + sigma_m / S_ut`` for ``sigma_m >= 0``, ``n = S_e / sigma_a``
   for a compressive mean;
 - Soderberg: the same with ``S_y`` in place of ``S_ut``.
@@ -163,13 +163,13 @@ def _goodman(sa: np.ndarray, sm: np.ndarray, Se: float, S: float) -> float:
     return math.inf if worst == 0.0 else 1.0 / worst
 
 
-def _link_fatigue(fs: FibreStress, material) -> LinkFatigue:
+def _link_fatigue(fs: FibreStress, material, peak_stress: float = 0.0) -> LinkFatigue:
     both = np.stack([fs.top, fs.bottom], axis=-1)  # (n, n_st, 2)
     hi, lo = both.max(axis=0), both.min(axis=0)
     mean, alt = 0.5 * (hi + lo), 0.5 * (hi - lo)
     i, f = np.unravel_index(int(np.argmax(alt)), alt.shape)
     Sy, Sut, Se = material.yield_strength, material.ultimate_strength, material.endurance_limit
-    peak = float(np.abs(both).max())
+    peak = max(float(np.abs(both).max()), peak_stress if math.isfinite(peak_stress) else 0.0)
     n_y = (math.inf if peak == 0.0 else Sy / peak) if Sy else None
     n_g = _goodman(alt, mean, Se, Sut) if (Se and Sut) else None
     n_s = _goodman(alt, mean, Se, Sy) if (Se and Sy) else None
@@ -177,14 +177,15 @@ def _link_fatigue(fs: FibreStress, material) -> LinkFatigue:
                        ("top", "bottom")[f], n_y, n_g, n_s)
 
 
-def fatigue_table(res, per_element: int = 1) -> FatigueTable:
+def fatigue_table(res, per_element: int = 4) -> FatigueTable:
     """Mean and alternating stress per station and fibre of every flexible link with a stress.
 
     Parameters
     ----------
     res : kedfem.analysis.results.PeriodicResult
     per_element : int
-        Stations per element.
+        Stations per element (default 4: the largest range between nodes, where the moment of
+        the distributed inertia load peaks, is not missed as at the nodes alone).
 
     Returns
     -------
@@ -196,5 +197,6 @@ def fatigue_table(res, per_element: int = 1) -> FatigueTable:
     for lk in mech.flexible_links:
         if lk.section.c is None:
             continue
-        out.append(_link_fatigue(fibre_stress(res, lk.name, per_element), lk.material))
+        peak = next((p.stress for p in res.peaks() if p.link == lk.name), 0.0)  # refined between stations
+        out.append(_link_fatigue(fibre_stress(res, lk.name, per_element), lk.material, peak))
     return FatigueTable(tuple(out))

@@ -80,6 +80,11 @@ def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_di
                 L.append(f"  mode {j + 1}  {kind:<29s} {a.mean():9.3f} {a.min():9.3f} {a.max():9.3f}")
             else:
                 L.append(f"  mode {j + 1}  {kind:<29s}         -         -         -")
+    buckled = np.asarray(freqs.modal) < 0
+    if buckled.any():
+        share = 100.0 * float(buckled.any(axis=1).mean())
+        L.append(f"  BUCKLED: a negative stiffness eigenvalue (shown as a negative modal frequency) over "
+                 f"{share:.3g} % of the cycle; the linear response there is not what the linkage does")
     L.append("")
     err = res.error
     if peaks:
@@ -111,7 +116,7 @@ def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_di
                     st = f", stress {e.stress:.1e}" if e.stress is not None else ""
                     L.append(f"    {e.link:<16s} deflection {e.deflection:.1e}{st}")
         else:
-            L.append("  mesh error: not estimated (--no-mesh-check, or the comparison mesh failed)")
+            L.append("  mesh error: not estimated (mesh check off, or the comparison mesh failed)")
     else:
         L.append("peak response: no flexible links")
     if loads is not None:
@@ -234,7 +239,7 @@ class Report:
 
 def write_result(res, out_dir, *, plots: bool = True, csv: bool = True, npz: bool = True, vtk: bool = True,
                  render: bool = False, modes: int = 4, scale=None, every: int = 1, dofs=(),
-                 n_modes: int = 4, mesh_check: bool = False, fatigue: bool = True, loads: bool = True,
+                 n_modes: int = 4, mesh_check: bool = True, fatigue: bool = True, loads: bool = True,
                  source: str = "python", command: str = "write", started: float | None = None) -> Report:
     """Write everything ``kedfem run`` writes for ``res`` into the folder ``out_dir``.
 
@@ -256,7 +261,7 @@ def write_result(res, out_dir, *, plots: bool = True, csv: bool = True, npz: boo
     n_modes : int
         Natural frequencies over the cycle in the summary.
     mesh_check : bool
-        Estimate the mesh error (one more solve on a finer mesh).
+        Estimate the mesh error (one more solve on another mesh), as ``kedfem run`` does.
     fatigue : bool
         The fatigue table and the stress histories.
     loads : bool
