@@ -59,7 +59,7 @@ def mould_pictures():
         series = export.write_vtk_series(res, tmp, scale=200.0)
         frames = sorted(Path(tmp).glob("response/*.vtu"))
         render.render_frame(frames[len(frames) // 4], IMG / "mould_render.png",
-                            title="mould oscillator, deformation x 200, colour: stress [Pa]")
+                            title="mould oscillator, deformation x 200, colour: stress [MPa]")
         del series
     print(kf.table3().table())
 

@@ -344,6 +344,10 @@ def _cmd_sweep(args) -> int:
 # ---------------------------------------------------------------- export
 def _cmd_export(args) -> int:
     from .io.report import check_out_dir, relative
+    if args.animate is not None and (Path(args.animate).name != args.animate or args.animate.startswith(".")
+                                     or not args.animate.lower().endswith(".gif")):
+        raise InputError(f"--animate {args.animate}: must be a .gif file name, written into the output folder "
+                         f"(give the scene first: kedfem export SCENE --animate [NAME.gif])")
     from .io import export
     from .io.outdir import RunFolder
     ld = _load(args.scene, _overrides(args))
@@ -369,6 +373,9 @@ def _cmd_export(args) -> int:
             from .io import render as rd
             frame = series.peak_frame if args.frame is None else args.frame
             staged.append(rd.render_series(series, rf.path / "deformed.png", frame=frame))
+        if args.animate is not None:
+            from .io import render as rd
+            staged.append(rd.render_animation(series, rf.path / args.animate))
         files = [out_dir / Path(f).relative_to(rf.path) for f in staged]
     t3 = time.perf_counter()
     print(f"VTK series: {len(series.files)} frames, deformation scale {series.scale:g} "
@@ -641,6 +648,9 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--render", action="store_true", help="render deformed.png off-screen")
     e.add_argument("--frame", type=_int_range(0, 10**6), metavar="K",
                    help="written frame to render (default: largest displacement)")
+    e.add_argument("--animate", nargs="?", const="cycle.gif", metavar="PATH",
+                   help="also write the deformed cycle as an animated GIF (off-screen, at most 60 frames, "
+                        "one colour range); PATH: a .gif file name in the output folder (default cycle.gif)")
     e.set_defaults(func=_cmd_export)
 
     c = sub.add_parser("campbell", parents=[common, scene], help="Campbell diagram: frequency bands vs speed, resonances",

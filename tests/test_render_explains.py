@@ -152,6 +152,10 @@ def test_colours_in_mpa_and_mm(series, can_render, tmp_path, monkeypatch):
     (mesh, kw), = cap.coloured()
     assert kw["scalar_bar_args"]["title"] == "stress [MPa]"
     lines = np.asarray(mesh["_colour"])
+    ids = np.asarray(mesh["vtkOriginalPointIds"])
+    np.testing.assert_array_equal(mesh.points, g.points[ids])     # the deformed frame, not the grey one under it
+    ghost = next(m for m, kw in cap.meshes if kw.get("color") == "#c8c8c8")
+    assert np.abs(ghost.points[:, :2] - mesh.points[:, :2]).max() > 1e-4
     assert np.nanmax(lines) == pytest.approx(np.nanmax(values), rel=1e-15)
     assert kw["clim"] == (np.nanmin(values), np.nanmax(values))
     # the symbols are drawn: dark fills (the ground), white fills (pins, slider box), ink lines (springs)

@@ -47,6 +47,8 @@ KNOWN = frozenset({
     "response.csv", "peaks.csv", "frequencies.csv", "result.npz", "summary.txt", "sweep.csv",
     "sweep_peaks.png", "displacement.png", "link_response.png", "frequencies.png", "floquet.png",
     "deformed.png", "response", "response.pvd", "modes", "modes.pvd", MANIFEST,
+    "fatigue.csv", "histories.csv", "histories.npz", "loads.csv", "loads.png", "cycle.gif",
+    "campbell.csv", "campbell_crossings.csv", "campbell.png", "stability_map.csv", "stability_map.png",
 })
 _HIDDEN_TMP = re.compile(r"^\..+\.(tmp|old|staging)-\d+-[0-9a-f]+")
 _LEFTOVER = re.compile(r"^\.(?P<name>.+)\.(staging|old)-(?P<pid>\d+)-[0-9a-f]+$")

@@ -380,13 +380,13 @@ def _draw(pl, pv, grid, *, values, bar, clim, title, undeformed, line_width, lay
     disp = np.asarray(grid.point_data["displacement"]) if "displacement" in grid.point_data else None
     scale = _field(grid, "scale") or 1.0
     if undeformed and disp is not None and line_ids.size:
-        ghost = grid.extract_cells(line_ids)
+        ghost = grid.extract_cells(line_ids).copy(deep=True)     # extract_cells shares the frame's points
         g_disp = np.asarray(ghost.point_data["displacement"])
         ghost.points = np.asarray(ghost.points) - scale * g_disp - (0.0, 0.0, z)
         pl.add_mesh(ghost, color=_GHOST, line_width=max(1.0, line_width / 2), render_lines_as_tubes=False,
                     render=False)
     if poly_ids.size:
-        body = grid.extract_cells(poly_ids)
+        body = grid.extract_cells(poly_ids).copy(deep=True)
         body.points = np.asarray(body.points) - (0.0, 0.0, 0.5 * z)
         pl.add_mesh(body, color="#6a8caf", opacity=0.35, show_edges=True, edge_color="#34495e", line_width=2,
                     render=False)
