@@ -89,3 +89,12 @@ def test_material_strengths_are_checked():
     with pytest.raises(kf.InputError, match="endurance_limit"):
         kf.Material(E=2e11, rho=7800, endurance_limit=-1.0)
     assert math.isclose(kf.Material(E=2e11, rho=7800, endurance_limit=1.5e8).endurance_limit, 1.5e8)
+
+
+def test_npz_histories_without_csv(slider_crank, tmp_path):
+    """kedfem run --no-csv stopped on a None path (a review found it)."""
+    rep = slider_crank.write(tmp_path / "o", csv=False, vtk=False, plots=False, mesh_check=False)
+    names = sorted(p.name for p in rep.files)
+    assert names == ["histories.npz", "result.npz", "summary.txt"]
+    z = np.load(tmp_path / "o" / "histories.npz")
+    np.testing.assert_allclose(z["rod/stress_top_Pa"], fibre_stress(slider_crank, "rod").top)

@@ -86,10 +86,10 @@ def scene_at(source, speed: float, *, effects: Sequence[str] | None = None, owne
         sc = Scene(source, speed=float(speed), effects=LINEAR_EFFECTS, damping=ModalDamping(0.02))
     elif callable(source):
         built = source(float(speed))
-        if isinstance(built, Mechanism):
-            sc = Scene(built, effects=LINEAR_EFFECTS, damping=ModalDamping(0.02))
+        if isinstance(built, Mechanism):  # at the speed asked, whatever the builder did with it
+            sc = Scene(built, speed=float(speed), effects=LINEAR_EFFECTS, damping=ModalDamping(0.02))
         elif isinstance(built, Scene):
-            sc = built
+            sc = dataclasses.replace(built, speed=float(speed))
         else:
             raise InputError(f"{owner}: the builder must return a kf.Scene or kf.Mechanism, got "
                              f"{type(built).__name__}")
@@ -356,7 +356,7 @@ def _solved_frequencies(sc: Scene, n_modes: int, nodes: int) -> np.ndarray:
     if not res.converged:
         log.warning("%s at %.6g rad/s: the non-linear iteration did not converge; its frequencies are "
                     "about an unconverged state", sc.mech.name, sc.mech.drives[0].speed)
-    idx = np.unique(np.round(np.arange(nodes) * (res.n / nodes)).astype(int))
+    idx = np.unique(np.floor(np.arange(nodes) * (res.n / nodes)).astype(int))
     return np.asarray(res.frequencies(n_modes, nodes=idx).modal)
 
 

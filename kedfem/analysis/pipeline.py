@@ -573,10 +573,11 @@ class _Run:
             note = ("undamped: the multipliers of a conservative scene lie on the unit circle unless a "
                     "parametric resonance makes them grow; the scheme's numerical damping can hide a weak one")
         elif self._stab_need and self.levels[-1].n < self._stab_need:
+            why = ("in its error; not needed for a verdict this clear" if self.stable_beyond_doubt()
+                   else "not in its error: give more elements")
             note = (f"{self.levels[-1].n} time elements damp the modes up to {self._stab_f:.4g} Hz numerically "
                     f"by more than {self.scene.rtol or 1e-3:.0e} per cycle: the spectral radius is too low, by "
-                    f"at most a factor {1.0 + bound:.3g} (in its error; resolved from {self._stab_need} "
-                    f"elements, not needed for a verdict this clear)")
+                    f"at most a factor {1.0 + bound:.3g} ({why}; resolved from {self._stab_need} elements)")
         return Stability(rho[-1], err, verdict, self.scheme.name, self.levels[-1].n, note)
 
     def result(self, lv: _Level, n_out: int, error=None, shared_cache: bool = True,
@@ -592,7 +593,7 @@ class _Run:
             lv.iterations, lv.history, float(d.residual), Timings(0.0, 0.0, 0.0, 0.0), d.method,
             elements=lv.n, scheme=self.scheme.name, error=error, sampler=Sampler(self.cycle, d),
             stability=stability)
-        for (_i, n), (level, cache_read) in self._read.items():
+        for (_i, n), (level, cache_read) in list(self._read.items()):
             if n == n_out and level is lv:  # this level on these instants was read for the estimate
                 res._cache.update(cache_read)
         if shared_cache:

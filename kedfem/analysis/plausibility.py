@@ -60,7 +60,7 @@ def check_result(res) -> list[str]:
     for p in res.peaks():
         lk = mech.links[p.link]
         ratio = p.deflection / lk.length
-        if ratio > MAX_DEFLECTION_RATIO:
+        if not math.isfinite(ratio) or ratio > MAX_DEFLECTION_RATIO:
             hint = ("" if "geometric_nonlinearity" in res.scene.effects else "add geometric_nonlinearity, or ")
             out.append(f"link '{p.link}': peak deflection {p.deflection * 1e3:.4g} mm is {100 * ratio:.3g} % of its "
                        f"length (> {100 * MAX_DEFLECTION_RATIO:g} %): small-deflection theory is doubtful "

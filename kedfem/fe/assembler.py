@@ -164,7 +164,8 @@ class Assembler:
         acc, bk = chunk.acc, chunk.beam
         if bk is not None:
             acc.add("beam", "M", bk.Tt @ self._m_local @ bk.T)
-            acc.add("beam", "K", bk.Tt @ self._k_local @ bk.T)
+            Kg = bk.Tt @ self._k_local @ bk.T
+            acc.add("beam", "K", Kg)
             beta = self.objective_beta() if damped else 0.0
             if beta:
                 # stiffness-proportional damping of the elements' strain rates in their own
@@ -174,7 +175,7 @@ class Assembler:
                 acc.add("beam", "C", Cb)
                 acc.add("beam", "K", Kb)
             else:
-                acc.add("beam", "Ks", bk.Tt @ self._k_local @ bk.T)
+                acc.add("beam", "Ks", Kg)
         for gname, masses in (("rigid", [self.member_inertia(m) for m in self.model.groups["rigid"].meta.get("members", ())]),
                               ("pmass", self._point_inertia())):
             if masses:

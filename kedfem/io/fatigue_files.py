@@ -26,6 +26,9 @@ QUANTITIES = ("stress_top_Pa", "stress_bottom_Pa", "axial_force_N", "bending_mom
 
 def write_fatigue_csv(table: FatigueTable, path) -> Path:
     """Write the fatigue table (see the module docstring) to ``path``; return it."""
+    bad = [lf.link for lf in table.links if not all(np.isfinite(x).all() for x in (lf.mean, lf.alternating))]
+    if bad:
+        raise KedError(f"fatigue table: non-finite stresses in {', '.join(bad)}; fatigue.csv not written")
     rows = ["link,station_m,fibre,mean_Pa,alternating_Pa,max_Pa,min_Pa"]
     for lf in table.links:
         for i, x in enumerate(lf.stations):
@@ -60,8 +63,8 @@ def write_histories(res, csv_path, npz_path=None, per_element: int = 1) -> list[
     Parameters
     ----------
     res : kedfem.analysis.results.PeriodicResult
-    csv_path : path
-        The tidy CSV.
+    csv_path : path or None
+        The tidy CSV (None: none).
     npz_path : path, optional
         The same as arrays.
     per_element : int
@@ -73,19 +76,20 @@ def write_histories(res, csv_path, npz_path=None, per_element: int = 1) -> list[
         The files written.
     """
     data = _histories(res, per_element)
-    deg = np.degrees(res.crank_angle) % 360.0
-    rows = ["crank_angle_deg,link,station_m,quantity,value"]
-    for link, d in data.items():
-        for q in QUANTITIES:
-            X = d[q]
-            for k in range(res.n):  # rows of text: one per instant
-                a = f"{deg[k]:.6f},{link},"
-                rows.extend(f"{a}{x:.9g},{q},{v:.9e}" for x, v in zip(d["stations_m"], X[k]))
     files = []
-    path = Path(csv_path)
-    with atomic_path(path) as tmp:
-        tmp.write_text("\n".join(rows) + "\n")
-    files.append(path)
+    if csv_path is not None:
+        deg = np.degrees(res.crank_angle) % 360.0
+        rows = ["crank_angle_deg,link,station_m,quantity,value"]
+        for link, d in data.items():
+            for q in QUANTITIES:
+                X = d[q]
+                for k in range(res.n):  # rows of text: one per instant
+                    a = f"{deg[k]:.6f},{link},"
+                    rows.extend(f"{a}{x:.9g},{q},{v:.9e}" for x, v in zip(d["stations_m"], X[k]))
+        path = Path(csv_path)
+        with atomic_path(path) as tmp:
+            tmp.write_text("\n".join(rows) + "\n")
+        files.append(path)
     if npz_path is not None:
         arrays = {"crank_angle_rad": res.crank_angle}
         for link, d in data.items():

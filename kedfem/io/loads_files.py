@@ -14,6 +14,7 @@ import numpy as np
 
 import logging
 
+from ..errors import KedError
 from ..analysis.loads import CSV_COLUMNS, FRAME, MachineLoads
 from .export import atomic_path
 from .plots import _figure, _save
@@ -38,11 +39,15 @@ def write_loads_csv(loads: MachineLoads, path) -> Path:
     pathlib.Path
     """
     path = Path(path)
+    rows = list(loads.rows())
+    bad = sorted({(q, j) for _a, _r, q, j, _m, _c, v, _u in rows if not np.isfinite(v)})
+    if bad:
+        raise KedError(f"loads: non-finite {', '.join(f'{q} at {j}' for q, j in bad[:4])}; loads.csv not written")
     with atomic_path(path) as tmp, open(tmp, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(CSV_COLUMNS)
-        for a, resp, q, j, m, comp, v, unit in loads.rows():
-            w.writerow((f"{a:.6f}", resp, q, j, m, comp, repr(v), unit))
+        for a, resp, q, j, m, comp, v, unit in rows:
+            w.writerow((f"{a:.6f}", resp, q, j, m, comp, repr(float(v)), unit))
     log.info("wrote %s", path)
     return path
 
