@@ -42,6 +42,7 @@ from ..model.mechanism import Mechanism
 from ..motion.kinematics import Motion
 from ..motion.kinetostatics import JointForces, KnownForces, kinetostatics
 from .recovery import periodic_rates
+from .results import _vertex
 
 __all__ = ["FRAME", "LoadHistory", "LoadPeak", "MachineLoads", "machine_loads", "loads_from_forces", "CSV_COLUMNS"]
 
@@ -221,14 +222,8 @@ class MachineLoads:
     def _peak(self, quantity, joint, member, response, values) -> LoadPeak:
         y = np.abs(values)
         k = int(np.argmax(y))
-        value, shift = float(y[k]), 0.0
-        if self.whole_cycle:
-            # periodic parabolic vertex through the largest sample and its neighbours
-            ym, yp = y[k - 1], y[(k + 1) % y.size]
-            den = ym - 2.0 * y[k] + yp
-            if den < 0.0:
-                shift = 0.5 * (ym - yp) / den
-                value = float(y[k] - 0.25 * (ym - yp) * shift)
+        # periodic parabolic vertex through the largest sample and its neighbours
+        value, shift = _vertex(y, k, periodic=True) if self.whole_cycle else (float(y[k]), 0.0)
         step = self.speed * self.period / self.n if self.whole_cycle else 0.0
         angle = float(np.mod(self.crank_angle[k] + shift * step, 2.0 * math.pi))
         return LoadPeak(quantity, joint, member, response, value, angle, float(np.sqrt(np.mean(y * y))))
@@ -529,10 +524,7 @@ def _elastic_loads(result, asm) -> tuple[np.ndarray, np.ndarray]:
         _x, xd, _xq, _gm = asm.element_state("load", mo, U, result.V)
         for k, it in enumerate(g.meta["items"]):
             if getattr(it, "follows", None) == "total":
-                n = np.asarray(it.axis)
-                vrel = (mo.v[:, mo.joint_names.index(it.joint)] + xd[:, k]) @ n - it.reference_speed
-                F = -(it.force * np.tanh(vrel / it.smoothing))[:, None] * n
-                loads[:, mo.joint_names.index(it.joint)] += F - rigid_friction(mo, it)
+                loads[:, mo.joint_names.index(it.joint)] += rigid_friction(mo, it, xd[:, k]) - rigid_friction(mo, it)
     return loads, moments
 
 

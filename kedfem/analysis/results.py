@@ -178,13 +178,15 @@ def _on_stations(X: np.ndarray) -> np.ndarray:
     return out
 
 
-def _vertex(y: np.ndarray, k: int) -> tuple[float, float]:
-    """Parabolic vertex through ``y[k-1:k+2]``: (value, offset from ``k`` in samples)."""
-    if 0 < k < y.size - 1:
-        den = y[k - 1] - 2.0 * y[k] + y[k + 1]
+def _vertex(y: np.ndarray, k: int, periodic: bool = False) -> tuple[float, float]:
+    """Parabolic vertex through ``y[k-1:k+2]`` (wrapping round with ``periodic``): (value, offset
+    from ``k`` in samples)."""
+    if periodic or 0 < k < y.size - 1:
+        ym, yp = y[k - 1], y[(k + 1) % y.size]
+        den = ym - 2.0 * y[k] + yp
         if den < 0.0:
-            dlt = 0.5 * (y[k - 1] - y[k + 1]) / den
-            return float(y[k] - 0.25 * (y[k - 1] - y[k + 1]) * dlt), float(dlt)
+            dlt = 0.5 * (ym - yp) / den
+            return float(y[k] - 0.25 * (ym - yp) * dlt), float(dlt)
     return float(y[k]), 0.0
 
 

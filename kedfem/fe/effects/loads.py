@@ -17,14 +17,23 @@ from ...model.mechanism import Load
 from ...motion.kinematics import Motion
 from .base import Chunk, Effect, StateTerms
 
-__all__ = ["Loads", "rigid_friction"]
+__all__ = ["Loads", "rigid_friction", "friction_law"]
 
 
-def rigid_friction(mo: Motion, f) -> np.ndarray:
-    """Friction force [N] (nt, 2) on the rigid-body velocity of its joint (tanh-regularised sign)."""
+def friction_law(mo: Motion, f, dv=None) -> np.ndarray:
+    """The friction force's regularised sign ``tanh(v_rel / smoothing)`` (nt,) [-], with ``v_rel``
+    the relative speed along its axis of the joint's rigid-body velocity plus ``dv`` (nt, 2)
+    [m/s], the elastic part, if given."""
     n = np.asarray(f.axis)
-    vrel = mo.v[:, mo.joint_names.index(f.joint)] @ n - f.reference_speed
-    return -(f.force * np.tanh(vrel / f.smoothing))[:, None] * n
+    v = mo.v[:, mo.joint_names.index(f.joint)]
+    vrel = (v if dv is None else v + dv) @ n - f.reference_speed
+    return np.tanh(vrel / f.smoothing)
+
+
+def rigid_friction(mo: Motion, f, dv=None) -> np.ndarray:
+    """Friction force [N] (nt, 2) on the rigid-body velocity of its joint (tanh-regularised
+    sign), or on the total velocity with the elastic part ``dv`` (nt, 2) [m/s]."""
+    return -(f.force * friction_law(mo, f, dv))[:, None] * np.asarray(f.axis)
 
 
 @dataclass(frozen=True)
@@ -68,8 +77,7 @@ class Loads(Effect):
             if getattr(it, "follows", None) != "total":
                 continue
             n = np.asarray(it.axis)
-            vrel = (motion.v[:, motion.joint_names.index(it.joint)] + xd[:, k]) @ n - it.reference_speed
-            th = np.tanh(vrel / it.smoothing)
+            th = friction_law(motion, it, xd[:, k])
             ct = it.force / it.smoothing * (1.0 - th**2)  # d(force)/d(speed) >= 0
             Cx[:, k] = ct[:, None, None] * np.outer(n, n)
             # Newton: F(v_i) + c_t (v - v_i) -> load -F(v_i) + c_t (q'-part of v_i)
