@@ -48,7 +48,7 @@ BAND_STATS = ("min", "mean", "max")
 #: Campbell methods: modal analysis on the rigid-body motion, or the frequencies of a periodic solve.
 METHODS = ("modal", "solve")
 #: rev/min per rad/s
-RPM = 60.0 / (2.0 * math.pi)
+RPM_PER_RAD_S = 60.0 / (2.0 * math.pi)
 
 
 def linear_effects(effects: Sequence[str]) -> tuple[str, ...]:
@@ -145,17 +145,17 @@ class Crossing:
     @property
     def rpm_lo(self) -> float:
         """``speed_lo`` [rev/min]."""
-        return self.speed_lo * RPM
+        return self.speed_lo * RPM_PER_RAD_S
 
     @property
     def rpm_hi(self) -> float:
         """``speed_hi`` [rev/min]."""
-        return self.speed_hi * RPM
+        return self.speed_hi * RPM_PER_RAD_S
 
     @property
     def rpm_mean(self) -> float:
         """``speed_mean`` [rev/min]."""
-        return self.speed_mean * RPM
+        return self.speed_mean * RPM_PER_RAD_S
 
     @property
     def frequency_lo(self) -> float:
@@ -214,7 +214,7 @@ class CampbellResult:
     @property
     def rpm(self) -> np.ndarray:
         """Speeds [rev/min], shape (n_speeds,)."""
-        return self.speeds * RPM
+        return self.speeds * RPM_PER_RAD_S
 
     @property
     def crank_frequency(self) -> np.ndarray:

@@ -53,7 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import AccuracyWarning, ConvergenceWarning, InputError, KedError, UnboundedResponseError
-from .campbell import RPM, cycle_frequencies, linear_effects, scene_at
+from .campbell import RPM_PER_RAD_S, cycle_frequencies, linear_effects, scene_at
 from .scene import Scene, _int
 
 __all__ = ["Evaluation", "CriticalSpeed", "critical_speed", "KINDS"]
@@ -98,7 +98,7 @@ class Evaluation:
     @property
     def rpm(self) -> float:
         """``speed`` [rev/min]."""
-        return self.speed * RPM
+        return self.speed * RPM_PER_RAD_S
 
 
 @dataclass(frozen=True)
@@ -148,12 +148,12 @@ class CriticalSpeed:
     @property
     def rpm(self) -> float:
         """Critical speed [rev/min]."""
-        return self.speed * RPM
+        return self.speed * RPM_PER_RAD_S
 
     @property
     def bracket_rpm(self) -> tuple[float, float]:
         """:attr:`bracket` [rev/min]."""
-        return self.bracket[0] * RPM, self.bracket[1] * RPM
+        return self.bracket[0] * RPM_PER_RAD_S, self.bracket[1] * RPM_PER_RAD_S
 
     @property
     def quantity(self) -> str:
@@ -182,19 +182,19 @@ def _solve_rho(sc: Scene) -> Evaluation:
         try:
             res = solve(sc)
         except UnboundedResponseError:
-            log.info("critical_speed: %.2f rpm: unbounded response (rho > 1e300)", speed * RPM)
+            log.info("critical_speed: %.2f rpm: unbounded response (rho > 1e300)", speed * RPM_PER_RAD_S)
             return Evaluation(speed, math.inf, 0.0, 1, 0)
     for w in caught:  # an unstable scene's response is large and the instability is the question
         important = issubclass(w.category, (AccuracyWarning, ConvergenceWarning))
-        log.log(logging.WARNING if important else logging.DEBUG, "critical_speed at %.2f rpm: %s: %s", speed * RPM,
+        log.log(logging.WARNING if important else logging.DEBUG, "critical_speed at %.2f rpm: %s: %s", speed * RPM_PER_RAD_S,
                 w.category.__name__, w.message)
     if not res.converged:
-        raise KedError(f"critical_speed: the non-linear iteration does not converge at {speed * RPM:.6g} rpm, so its "
+        raise KedError(f"critical_speed: the non-linear iteration does not converge at {speed * RPM_PER_RAD_S:.6g} rpm, so its "
                        "Floquet multipliers are not those of a periodic response; ask the question of the "
                        "linearised equations (linear=True) or narrow the bracket")
     st = res.stability
     if st.note:
-        log.info("critical_speed at %.2f rpm: %s", speed * RPM, st.note)
+        log.info("critical_speed at %.2f rpm: %s", speed * RPM_PER_RAD_S, st.note)
     side = {"stable": -1, "unstable": 1}.get(st.verdict, 0)
     ev = Evaluation(speed, float(st.spectral_radius), float(st.error or 0.0), side, int(st.elements))
     log.info("critical_speed: %.2f rpm: rho %.6g +- %.1e (%s, %d elements)", ev.rpm, ev.value, ev.error,
@@ -206,7 +206,7 @@ def _lowest_frequency(sc: Scene, nodes: int) -> Evaluation:
     """Lowest signed natural frequency over the cycle (modal analysis on the rigid-body motion)."""
     f = float(cycle_frequencies(sc, 1, nodes)[:, 0].min())
     speed = abs(sc.mech.drives[0].speed)
-    log.info("critical_speed: %.2f rpm: lowest frequency over the cycle %.6g Hz", speed * RPM, f)
+    log.info("critical_speed: %.2f rpm: lowest frequency over the cycle %.6g Hz", speed * RPM_PER_RAD_S, f)
     return Evaluation(speed, f, 0.0, int(np.sign(-f)), 0)
 
 
@@ -343,8 +343,8 @@ def critical_speed(scene, lo: float, hi: float, *, rtol: float = 5e-3, kind: str
         raise InputError(f"critical_speed: kind must be one of {', '.join(KINDS)}, got {kind!r}")
     lo, hi = _number("lo", lo), _number("hi", hi)
     if lo >= hi:
-        raise InputError(f"critical_speed: lo must be < hi, got lo = {lo:.6g} rad/s ({lo * RPM:.6g} rpm) and "
-                         f"hi = {hi:.6g} rad/s ({hi * RPM:.6g} rpm)")
+        raise InputError(f"critical_speed: lo must be < hi, got lo = {lo:.6g} rad/s ({lo * RPM_PER_RAD_S:.6g} rpm) and "
+                         f"hi = {hi:.6g} rad/s ({hi * RPM_PER_RAD_S:.6g} rpm)")
     if isinstance(rtol, bool) or not isinstance(rtol, (int, float, np.floating)) or not 0 < rtol < 0.5:
         raise InputError(f"critical_speed: rtol must be a number in (0, 0.5), got {rtol!r}")
     scan = _int("critical_speed", "scan", scan, 0)

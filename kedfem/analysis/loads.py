@@ -426,7 +426,7 @@ def _accelerations(result, asm, gname: str) -> np.ndarray:
     mo, U, V = result.motion, result.U, result.V
     x, _xd, _xq, gm = asm.element_state(gname, mo, U, V)
     if result.sampler is not None:
-        acc = gm.apply(result.sampler.acceleration(result.t))
+        acc = gm.apply(result.dof_accelerations())
         if gm.E1 is not None:
             acc = acc + 2.0 * gm.apply(V, E=gm.E1) + gm.apply(U, E=gm.E2)
         return acc + gm.p2 if gm.p2 is not None else acc

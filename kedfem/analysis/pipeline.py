@@ -332,6 +332,12 @@ class _Run:
             self._bar.set_postfix_str(f"{n} time elements, {td - ta:.1f} s", refresh=True)
         return lv
 
+    def forecast_elements(self, need: int) -> int:
+        """The time elements the refinement is likely to end on (see :meth:`forecast`)."""
+        lv = self.levels[-1]
+        target = max(4 * lv.n if len(self.levels) < 3 else lv.n, need, self._stab_need)
+        return min(target, MAX_STEPS)
+
     def forecast(self, need: int) -> float:
         """Seconds the remaining levels are likely to take, from the last level's time per element.
 
@@ -340,8 +346,7 @@ class _Run:
         """
         lv = self.levels[-1]
         per = (lv.kinematics + lv.assembly + lv.solve) / lv.n
-        target = max(4 * lv.n if len(self.levels) < 3 else lv.n, need, self._stab_need)
-        target = min(target, MAX_STEPS)
+        target = self.forecast_elements(need)
         left, n = 0.0, lv.n
         while n < target:
             n = self.scheme.refine(n)
@@ -677,7 +682,7 @@ class _Run:
                         log.warning("%s: this solve will take about %.0f s more (%d elastic DOFs, up to %d time "
                                     "elements per cycle: %.2f s per element measured on the first %d); a looser "
                                     "rtol or a coarser mesh is faster", sc.mech.name, left, self.model.n_dof,
-                                    max(need, self._stab_need, 4 * n),
+                                    self.forecast_elements(need),
                                     (lv.kinematics + lv.assembly + lv.solve) / n, n)
                 failed = 0
                 for prev in reversed(self.levels):

@@ -491,9 +491,7 @@ class PeriodicResult:
             gm = self._beam_map()
             cols = gm.cols[sl]
             pad = np.zeros((self.n, 1))
-            acc = self._cache.get("acceleration")
-            if acc is None:
-                acc = self._cache["acceleration"] = self.sampler.acceleration(self.t)
+            acc = self.dof_accelerations()
             Q = [np.concatenate([X, pad], axis=1)[:, cols] for X in (self.U, self.V, acc)]  # (n, ne, m)
             E = gm.E[:, sl]
 
@@ -591,6 +589,14 @@ class PeriodicResult:
         element (:meth:`stations`).
         """
         return _on_stations(self._forces(self._link(link).name, _per_element(per_element))[0])
+
+    def dof_accelerations(self) -> np.ndarray:
+        """Elastic DOF accelerations (n, N) [m/s^2, rad/s^2] at the result's instants, from the
+        scheme's dense output (computed once)."""
+        acc = self._cache.get("acceleration")
+        if acc is None:
+            acc = self._cache["acceleration"] = self.sampler.acceleration(self.t)
+        return acc
 
     def section_forces(self, link: str, per_element: int = 1) -> tuple[np.ndarray, np.ndarray]:
         """Axial force ``N`` [N] (tension positive) and bending moment ``M = EI v''`` [N m] at the

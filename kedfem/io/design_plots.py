@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..analysis.campbell import RPM, check_speeds
+from ..analysis.campbell import RPM_PER_RAD_S, check_speeds
 from ..errors import InputError, PlausibilityWarning
 from . import plots
 from .sweep import SweepTable
@@ -54,7 +54,7 @@ def write_campbell_csv(res, path) -> Path:
     """
     n, m, _ = res.bands.shape
     s = np.repeat(res.speeds, m)
-    rows = zip(s.tolist(), (s * RPM).tolist(), (s / (2 * math.pi)).tolist(), np.tile(np.arange(1, m + 1), n).tolist(),
+    rows = zip(s.tolist(), (s * RPM_PER_RAD_S).tolist(), (s / (2 * math.pi)).tolist(), np.tile(np.arange(1, m + 1), n).tolist(),
                *res.bands.reshape(n * m, 3).T.tolist())
     return _table(path, ("speed_rad_s", "speed_rpm", "crank_Hz", "mode", "f_min_Hz", "f_mean_Hz", "f_max_Hz"),
                   list(rows))
@@ -154,14 +154,14 @@ class StabilityMap:
     @property
     def rpm(self) -> np.ndarray:
         """Speeds [rev/min], shape (n_speeds,)."""
-        return self.speeds * RPM
+        return self.speeds * RPM_PER_RAD_S
 
     def onsets(self) -> np.ndarray:
         """First speed at which the spectral radius crosses 1 from below, per parameter value.
 
-        Linear interpolation of ``log rho`` between grid speeds; NaN where the grid
-        shows no such crossing (stable throughout, unstable from its first speed, or
-        failed points in between).
+        Linear interpolation of ``log rho`` between grid speeds (the first crossing from below,
+        also after an unstable stretch at the low speeds); NaN where the grid shows none
+        (stable throughout, unstable throughout, or failed points in between).
 
         Returns
         -------
@@ -188,7 +188,7 @@ class StabilityMap:
             for j in range(ns):
                 v, s = float(self.values[i]), float(self.speeds[j])
                 msg = why.get((v, s), "")
-                rows.append((v, s, s * RPM, float(self.spectral_radius[i, j]), bool(self.stable[i, j]), not msg, msg))
+                rows.append((v, s, s * RPM_PER_RAD_S, float(self.spectral_radius[i, j]), bool(self.stable[i, j]), not msg, msg))
         return _table(path, (self.param, "speed_rad_s", "speed_rpm", "spectral_radius", "stable", "ok", "error"),
                       rows)
 
@@ -253,9 +253,9 @@ def stability_chart(smap: StabilityMap, path, *, marks: Sequence[tuple[float, fl
         handles += [Patch(facecolor="none", edgecolor="k", hatch="///", label="unstable (rho > 1)"),
                     Line2D([], [], color="k", lw=1.5, label="rho = 1")]
     for speed, value, label in marks:
-        ax.plot([speed * RPM], [value], "o", mfc="yellow", mec="k", ms=7, zorder=5)
+        ax.plot([speed * RPM_PER_RAD_S], [value], "o", mfc="yellow", mec="k", ms=7, zorder=5)
         if label:
-            ax.annotate(label, (speed * RPM, value), xytext=(6, 4), textcoords="offset points", fontsize="x-small",
+            ax.annotate(label, (speed * RPM_PER_RAD_S, value), xytext=(6, 4), textcoords="offset points", fontsize="x-small",
                         bbox=dict(boxstyle="round,pad=0.2", fc="white", ec="none", alpha=0.8))
     if smap.failures:
         handles.append(Patch(facecolor="0.8", edgecolor="none", label=f"no result ({len(smap.failures)} points)"))
@@ -316,7 +316,7 @@ def stability_map(base: Mapping, speeds, param: str, values: Sequence, *, schedu
                        and math.isfinite(v) for v in values):
         raise InputError(f"stability_map: values must be a non-empty sequence of finite numbers, got {values!r}")
     vals = [v.item() if isinstance(v, np.generic) else v for v in values]
-    rpm = [float(x) for x in s * RPM]
+    rpm = [float(x) for x in s * RPM_PER_RAD_S]
     scene = None
     for v in vals:  # every value against the scene before any worker starts
         scene = scenefile.scene_from_dict(scenefile.with_overrides(base, {param: v, "speed_rpm": rpm[0]}),
