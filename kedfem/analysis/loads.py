@@ -380,7 +380,7 @@ def _slope_weights() -> tuple[np.ndarray, np.ndarray]:
 def _holds_moment(mech: Mechanism, link, k: int) -> bool:
     """The end ``k`` (0: ``a``, 1: ``b``) of a flexible link is elastically clamped to something."""
     joint = link.joints[k]
-    return link.ends[k] == "clamp" or mech.joints[joint].welded
+    return link.ends[k] == "clamp" or mech.joints[joint].welds(link.name)
 
 
 def _end_forces(result, link) -> dict:
@@ -452,7 +452,7 @@ def _elastic_known(result, asm) -> KnownForces:
             root = drive is not None and drive.ground_joint == j
             if root and drive.torsional_stiffness is None:
                 torque[lk.name] = M
-            welded = mech.joints[j].welded
+            welded = mech.joints[j].welds(lk.name)
             if (root and not welded) or not _holds_moment(mech, lk, k):
                 continue  # a free end, or a root whose moment is the drive's
             moment[(lk.name, j)] = M

@@ -220,16 +220,16 @@ class Assembler:
         return self._axial
 
     # ------------------------------------------------------------ element terms
-    def _transform(self, gname, acc: GroupTerms, mo, nt):
+    def _transform(self, gname, acc: GroupTerms, mo, nt, key=None, elements=None):
+        """q-space terms of a group's elements (those of bucket ``key``, see ``FEModel.buckets``)."""
         model = self.model
-        M = acc.get(gname, "M")
-        C = acc.get(gname, "C")
-        K = acc.get(gname, "K")
-        Ks = acc.get(gname, "Ks")
-        Q = acc.get(gname, "Q")
+        terms = [acc.get(gname, k) for k in ("M", "C", "K", "Ks", "Q")]
+        if key is not None and key != gname:
+            terms = [None if x is None else x[:, elements] for x in terms]
+        M, C, K, Ks, Q = terms
         if M is None and C is None and K is None and Q is None:
             return None
-        gm = model.group_map(gname, mo, self._forms)
+        gm = model.group_map(gname if key is None else key, mo, self._forms)
         E = gm.E
         Et = np.swapaxes(E, -1, -2)
         out = {}
@@ -287,7 +287,8 @@ class Assembler:
         dyn = self.model.has_moving_maps() or self.model.has_offsets()
         self._forms = self.model.entity_forms(mo) if dyn else None
         try:
-            out = {g: self._transform(g, chunk.acc, mo, nt) for g in self.model.groups}
+            out = {key: self._transform(g, chunk.acc, mo, nt, key, els)
+                   for g in self.model.groups for key, els in self.model.buckets(g).items()}
         finally:
             self._forms = None
         return {g: o for g, o in out.items() if o}

@@ -55,6 +55,7 @@ class RotDof:
     offset: bool = False
     block: int = -1  # kind "cb": Craig-Bampton block and interior node index
     node: int = -1
+    slot: str | None = None  # kind "slot": the locked slider joint whose member's slope it follows
 
 
 @dataclass
@@ -139,7 +140,7 @@ class DofNumbering:
 
         for j in mech.joints.values():
             if j.welded and j.kind != "ground":
-                here = [m for m in mech.members_at(j.name) if m in parent]
+                here = [m for m in mech.members_at(j.name) if m in parent and j.welds(m)]
                 for m in here[1:]:
                     parent[find(m)] = find(here[0])
         groups: dict[str, list[str]] = {}
@@ -177,14 +178,20 @@ class DofNumbering:
             for j in self._member_joints(m):
                 if j not in atts:
                     atts.append(j)
-        sliders = [j for j in atts if mech.joints[j].kind == "slider"]
-        if sliders:
-            raise InputError(f"rigid member '{members[0]}' attaches to slider joint '{sliders[0]}': a slider on "
-                             "a rigid member is not supported; make that link flexible")
+        sliders = [j for j in atts if mech.joints[j].kind in ("slider", "slot")]
         grounded = [j for j in atts if mech.joints[j].kind == "ground"]
         shared = [j for j in atts if j in self._rigid_joint_points]
         drive = next((mech.driven(m) for m in members if mech.driven(m) is not None), None)
-        if len(grounded) >= 2:
+        if sliders:
+            self._check_rigid_on_slider(name, sliders, grounded, shared)
+        if sliders:
+            # the slider's point is the group's reference: x = x_slider + phi S rho
+            j = sliders[0]
+            ref_pt = self._slider_point(j)
+            self._rigid_joint_points[j] = ref_pt
+            q = self._new_q(f"{name}.phi")
+            phi = self._add_rot(RotDof("free", f"{name}.phi", (q,), members[0]))
+        elif len(grounded) >= 2:
             ref_pt = self._add_point(PointDof("fixed", f"{name}.ref"))
             phi = -1
         elif len(grounded) == 1:
@@ -245,6 +252,51 @@ class DofNumbering:
         self.rigid_groups.append({"members": tuple(members), "ref": ref_pt, "phi": phi,
                                   "drive": drive})
 
+    def _check_rigid_on_slider(self, name, sliders, grounded, shared):
+        """A rigid group may ride on one slider, taking its point as reference, and nothing else fixed."""
+        mech = self.mech
+        j = sliders[0]
+        why = None
+        if len(sliders) > 1:
+            why = f"it rides on two sliders ('{sliders[0]}' and '{sliders[1]}')"
+        elif grounded:
+            why = f"it is also pinned to the frame at '{grounded[0]}'"
+        elif shared:
+            why = f"it is also pinned to rigid member(s) at '{shared[0]}'"
+        elif mech.joints[j].kind == "slot" and mech.joints[j].rotation == "locked":
+            why = f"it is locked in rotation to '{mech.joints[j].on}'"
+        elif mech.joints[j].kind == "slot" and mech.joints[j].on in name.split("+"):
+            why = f"it carries the line of slider '{j}' itself"
+        if why is None:
+            return
+        raise InputError(
+            f"rigid member(s) '{name}' on slider '{j}': {why}, so the slider's constraint would act "
+            "on the deflection of other members, which kedfem does not eliminate; make one of these links "
+            "flexible (a stiff flexible link models a rigid one)")
+
+    def _slider_point(self, jn: str) -> int:
+        """The translation entity of a slider joint: along its line (fixed or on a member)."""
+        j = self.mech.joints[jn]
+        if j.kind == "slider":
+            q = self._new_q(f"{jn}.s")
+            return self._add_point(PointDof("slider", jn, (q,), axis=j.axis, loc=("joint", jn)))
+        cols = (self._new_q(f"{jn}.s[{j.on}]"),) if j.slide == "free" else ()
+        return self._add_point(PointDof("slot", jn, cols, loc=("joint", jn)))
+
+    def _build_slots(self):
+        """The body point of a rigid member under each block sliding on it."""
+        self.slot_support = {}
+        for jn, j in self.mech.joints.items():
+            if j.kind != "slot" or j.on not in self.member_rot:
+                continue
+            grp = next(g for g in self.rigid_groups if j.on in g["members"])
+            ref, phi = grp["ref"], grp["phi"]
+            if phi < 0 and self.points[ref].kind == "fixed":
+                pid = self._add_point(PointDof("fixed", f"{j.on}@{jn}", loc=("joint", jn)))
+            else:
+                pid = self._add_point(PointDof("body", f"{j.on}@{jn}", parent=ref, phi=phi, loc=("joint", jn)))
+            self.slot_support[jn] = pid
+
     def _build_joint_points(self):
         mech = self.mech
         for jn, j in mech.joints.items():
@@ -252,10 +304,8 @@ class DofNumbering:
                 self.joint_point[jn] = self._rigid_joint_points[jn]
             elif j.kind == "ground":
                 self.joint_point[jn] = self._add_point(PointDof("fixed", jn, loc=("joint", jn)))
-            elif j.kind == "slider":
-                q = self._new_q(f"{jn}.s")
-                self.joint_point[jn] = self._add_point(PointDof("slider", jn, (q,), axis=j.axis,
-                                                                loc=("joint", jn)))
+            elif j.kind in ("slider", "slot"):
+                self.joint_point[jn] = self._slider_point(jn)
             else:
                 frame = self._joint_frame(jn) if self.corotate else None
                 if frame is None:
@@ -290,7 +340,9 @@ class DofNumbering:
                 q = self._new_q(label)
                 return self._add_rot(RotDof("free", label, (q,), lk.name))
             return self._add_rot(RotDof("fixed", label, (), lk.name))
-        clamped = lk.ends[k] == "clamp" or jt.welded
+        if jt.kind == "slot" and jt.rotation == "locked" and jt.on != lk.name:
+            return self._add_rot(RotDof("slot", label, (), lk.name, slot=joint))
+        clamped = lk.ends[k] == "clamp" or jt.welds(lk.name)
         if not clamped:
             q = self._new_q(label)
             return self._add_rot(RotDof("free", label, (q,), lk.name))
@@ -318,6 +370,7 @@ class DofNumbering:
     def _build_beams(self):
         mech = self.mech
         clamp_groups: dict = {}
+        self.link_nodes = {}  # unreduced flexible link -> (node point ids, node rotation ids)
         rows = {k: [] for k in ("link", "L", "EA", "EI", "rhoA", "GAs", "s1", "lumped", "timo")}
         ids = []
         first, count = {}, {}
@@ -371,6 +424,8 @@ class DofNumbering:
             node_rots.append(rb)
             if reduced:
                 blk["bounds"] = (node_pts[0], ra, node_pts[-1], rb)
+            else:
+                self.link_nodes[lk.name] = (tuple(node_pts), tuple(node_rots))
             for i in range(ne):
                 ids.append((node_pts[i], node_rots[i], node_pts[i + 1], node_rots[i + 1]))
                 rows["link"].append(li)

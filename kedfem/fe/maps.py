@@ -15,10 +15,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..motion.kinematics import Motion
+from .slots import slot_point_form, slot_rotation_form, support_entities
 
 __all__ = ["ConstraintMaps", "GroupMap"]
 
 _S = np.array([[0.0, -1.0], [1.0, 0.0]])
+#: Elements with more q columns than this (and twice the group's median) form their maps apart
+WIDE = 12
 
 
 @dataclass(frozen=True)
@@ -74,13 +77,27 @@ class ConstraintMaps:
                 out = pd.cols
             elif pd.kind == "body":
                 out = self.entity_cols("P", pd.parent) + (self.rots[pd.phi].cols if pd.phi >= 0 else ())
+            elif pd.kind == "slot":
+                out = self._slot_cols(pd.cols, pd.loc[1])
             else:
                 out = self._block_cols(pd.block)
         else:
             rd = self.rots[eid]
-            out = self._block_cols(rd.block) if rd.kind == "cb" else rd.cols
+            if rd.kind == "cb":
+                out = self._block_cols(rd.block)
+            elif rd.kind == "slot":
+                out = self._slot_cols((), rd.slot)
+            else:
+                out = rd.cols
         cache[key] = out
         return out
+
+    def _slot_cols(self, own: tuple, joint: str) -> tuple[int, ...]:
+        """A block's own column and those of the member it slides on (every node it may reach)."""
+        out = list(own)
+        for kind, eid in support_entities(self, joint):
+            out += [c for c in self.entity_cols(kind, eid) if c not in out]
+        return tuple(out)
 
     def _block_cols(self, b: int) -> tuple[int, ...]:
         blk = self.blocks[b]
@@ -99,11 +116,18 @@ class ConstraintMaps:
                 return True, self._block_offset(pd.block)
             if pd.kind == "corot":
                 return True, False
+            if pd.kind == "slot":
+                return True, self._slot_offset(pd.loc[1])
             return False, False
         rd = self.rots[eid]
         if rd.kind == "cb":
             return True, self._block_offset(rd.block)
+        if rd.kind == "slot":
+            return True, self._slot_offset(rd.slot)
         return False, rd.offset
+
+    def _slot_offset(self, joint: str) -> bool:
+        return any(self.entity_dynamic(k, e)[1] for k, e in support_entities(self, joint))
 
     def _block_offset(self, b: int) -> bool:
         blk = self.blocks[b]
@@ -150,6 +174,8 @@ class ConstraintMaps:
             rd = self.rots[rid]
             if rd.kind == "cb":
                 out = block(rd.block)[rd.node][1]
+            elif rd.kind == "slot":
+                out = slot_rotation_form(self, rid, motion, pform, rform)
             else:
                 k = len(rd.cols)
                 C = np.ones((1, 1, k))
@@ -174,6 +200,8 @@ class ConstraintMaps:
                 out = (pd.cols, np.asarray(pd.axis, float).reshape(1, 2, 1), None, None) + none3
             elif pd.kind == "cb":
                 out = block(pd.block)[pd.node][0]
+            elif pd.kind == "slot":
+                out = slot_point_form(self, pid, motion, pform, rform)
             elif pd.kind == "corot":  # components in the link's rotating frame: x = R(theta) q
                 i = motion.member_names.index(pd.loc[1])
                 th, w, al = motion.theta[:, i], motion.omega[:, i], motion.alpha[:, i]
@@ -334,10 +362,12 @@ class ConstraintMaps:
         """
         if gname in self._static_cache:
             return self._static_cache[gname]
-        g = self.groups[gname]
-        n_el = g.n
+        base, _hash, part = gname.partition("#")
+        g = self.groups[base]
+        elements = self.buckets(base)[gname] if part else np.arange(g.n)
+        n_el = elements.size
         per_el = []
-        for e in range(n_el):
+        for e in elements:
             ucols: list[int] = []
             for slot, kind in enumerate(g.layout):
                 eid = g.ids[e, slot]
@@ -353,17 +383,19 @@ class ConstraintMaps:
         dynamic = []  # (element, row, positions, kind, entity id, width, moving)
         passive = []  # (element, row, passive link name): chord stretch at end b
         passive_end = {}
-        if gname == "beam":
+        if base == "beam":
+            local = {int(e): i for i, e in enumerate(elements)}
             for name in self.beam.links:
-                if not self.mech.links[name].kinematic:
-                    passive_end[self.beam.first[name] + self.beam.count[name] - 1] = name
+                end = self.beam.first[name] + self.beam.count[name] - 1
+                if not self.mech.links[name].kinematic and end in local:
+                    passive_end[local[end]] = name
         for e in range(n_el):
             ucols = per_el[e]
             colarr[e, :len(ucols)] = ucols
             index = {c: i for i, c in enumerate(ucols)}
             row = 0
             for slot, kind in enumerate(g.layout):
-                eid = g.ids[e, slot]
+                eid = g.ids[elements[e], slot]
                 width = 2 if kind == "P" else 1
                 if eid >= 0:
                     pos = np.array([index[c] for c in self.entity_cols(kind, eid)], dtype=int)
@@ -379,6 +411,29 @@ class ConstraintMaps:
                 row += width
         out = (colarr, E0, dynamic, passive)
         self._static_cache[gname] = out
+        return out
+
+    def buckets(self, gname: str) -> dict:
+        """The elements of a group by width of their q-space maps: ``{key: element indices}``.
+
+        A block on a member (a slot joint) depends on every node of that member, so the
+        few elements at the block have far more columns than the others; their maps are
+        formed apart (key ``gname#wide``) so that the others keep their narrow width.
+        Groups without such elements have the single key ``gname``.
+        """
+        cache = self.__dict__.setdefault("_bucket_cache", {})
+        if gname in cache:
+            return cache[gname]
+        g = self.groups[gname]
+        width = np.array([len({c for slot, kind in enumerate(g.layout) if g.ids[e, slot] >= 0
+                               for c in self.entity_cols(kind, g.ids[e, slot])}) for e in range(g.n)], int)
+        limit = max(WIDE, 2 * int(np.median(width))) if width.size else WIDE
+        wide = width > limit
+        out = {gname: np.arange(g.n)}
+        if wide.any():
+            out = {f"{gname}#narrow": np.flatnonzero(~wide), f"{gname}#wide": np.flatnonzero(wide)}
+            out = {k: v for k, v in out.items() if v.size}
+        cache[gname] = out
         return out
 
     def _const_C(self, kind, eid):

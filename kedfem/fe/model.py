@@ -99,6 +99,7 @@ class FEModel(DofNumbering, ConstraintMaps, Scatter):
         self._build_rigid_groups()
         self._build_joint_points()
         self._build_beams()
+        self._build_slots()
         self._build_groups()
         self.n_dof = len(self.dof_labels)
         if self.n_dof == 0:

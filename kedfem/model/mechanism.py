@@ -64,21 +64,33 @@ class Joint:
     """A joint of the mechanism (a node of the graph).
 
     ``kind`` is ``"revolute"`` (pin between members), ``"ground"`` (pin to
-    the frame) or ``"slider"`` (pin on a slider moving along a fixed line).
-    ``welded`` joints (and clamped ground joints) connect their members
-    rigidly, kinematically and elastically.
+    the frame), ``"slider"`` (pin on a slider moving along a fixed line) or
+    ``"slot"`` (a block sliding along a line fixed in the member ``on``: a
+    prismatic pair between moving members). ``welded`` joints (and clamped
+    ground joints) connect their members rigidly, kinematically and
+    elastically. A slot's ``rotation`` is ``"free"`` (pin in a slot) or
+    ``"locked"`` (piston in a cylinder: the members at the joint turn with
+    ``on``); its ``slide`` is ``"free"`` or ``"locked"`` (the block stays at
+    its abscissa: a pin on the member).
     """
 
     name: str
     at: tuple[float, float]
     kind: str = "revolute"
-    welded: bool = False
+    welded: bool | tuple[str, ...] = False
     axis: tuple[float, float] | None = None
+    on: str | None = None
+    rotation: str = "free"
+    slide: str = "free"
 
     @property
     def grounded(self) -> bool:
         """True for joints whose translation is fixed to the frame."""
         return self.kind == "ground"
+
+    def welds(self, member: str) -> bool:
+        """True if ``member`` is rigidly connected here (``welded=True``, or named in ``welded``)."""
+        return self.welded is True or (isinstance(self.welded, tuple) and member in self.welded)
 
 
 @dataclass(frozen=True)
@@ -277,7 +289,7 @@ class Mechanism:
         return self._new_joint(Joint(name, _vec2(f"ground '{name}'", "at", at), "ground",
                                      welded=bool(clamped)))
 
-    def joint(self, name: str, at, welded: bool = False) -> Joint:
+    def joint(self, name: str, at, welded=False) -> Joint:
         """Add a joint between members: revolute, or rigid when ``welded=True``.
 
         Parameters
@@ -287,14 +299,28 @@ class Mechanism:
         at : (float, float)
             Position in the reference configuration [m]; it chooses the
             assembly branch of the linkage.
-        welded : bool
-            Connect the members meeting here rigidly (kinematics and elasticity).
+        welded : bool or sequence of str
+            ``True``: connect all the members meeting here rigidly (kinematics
+            and elasticity). A sequence of two or more member names welds
+            those to each other and leaves the others pinned (a lever made of
+            two links with a crank pinned where they meet).
         """
-        return self._new_joint(Joint(name, _vec2(f"joint '{name}'", "at", at), "revolute",
-                                     welded=bool(welded)))
+        owner = f"joint '{name}'"
+        if not isinstance(welded, (bool, np.bool_)):
+            if isinstance(welded, str) or not all(isinstance(x, str) for x in welded):
+                raise InputError(f"{owner}: welded must be True/False or a sequence of member names, "
+                                 f"got {welded!r}")
+            welded = tuple(welded)
+            if len(welded) < 2 or len(set(welded)) != len(welded):
+                raise InputError(f"{owner}: welded names the members welded to each other: two or more "
+                                 f"different ones, got {welded!r}")
+        else:
+            welded = bool(welded)
+        return self._new_joint(Joint(name, _vec2(owner, "at", at), "revolute", welded=welded))
 
-    def slider(self, name: str, at, axis=(1.0, 0.0)) -> Joint:
-        """Add a pin on a slider that moves along a fixed line through ``at``.
+    def slider(self, name: str, at, axis=None, *, on: str | None = None, rotation: str = "free",
+               slide: str = "free") -> Joint:
+        """Add a pin on a slider: along a fixed line, or along a line fixed in a moving member.
 
         Parameters
         ----------
@@ -302,16 +328,78 @@ class Mechanism:
             Joint name.
         at : (float, float)
             Position in the reference configuration [m].
-        axis : (float, float)
-            Direction of the slider's line (normalised here).
+        axis : (float, float), optional
+            Direction of the slider's line in the reference configuration
+            (normalised here). Default ``(1, 0)`` on the frame, and the link's
+            ``a -> b`` direction on a link (``on=``); required on a body.
+        on : str, optional
+            The member carrying the line (a link or a body): a prismatic pair
+            between moving members (the slotted lever of a quick-return, the
+            barrel of a cylinder). The line turns with ``on``; the block's
+            travel along it is a coordinate of the kinematics. On a flexible
+            link the line must be the link's own axis, and the block's
+            transverse displacement follows the link's deflection at the
+            block's current abscissa. ``None``: the frame.
+        rotation : {"free", "locked"}
+            ``"free"``: a pin in the slot, the members at the joint rotate
+            freely. ``"locked"``: a piston in its cylinder, the members at the
+            joint turn with ``on`` (rigidly, and elastically with the slope of
+            a flexible ``on`` under the block).
+        slide : {"free", "locked"}
+            ``"locked"`` keeps the block at its abscissa: a pin on the member
+            at any point of it (no need to split the link there).
         """
-        ax = np.asarray(_vec2(f"slider '{name}'", "axis", axis))
-        big = float(np.max(np.abs(ax)))
-        if big == 0.0:
-            raise InputError(f"slider '{name}': axis must be a non-zero vector")
-        ax = ax / big                      # scaled first: a subnormal axis normalises exactly
-        ax = tuple(float(v) for v in ax / float(np.hypot(*ax)))
-        return self._new_joint(Joint(name, _vec2(f"slider '{name}'", "at", at), "slider", axis=ax))
+        owner = f"slider '{name}'"
+        if rotation not in ("free", "locked"):
+            raise InputError(f"{owner}: rotation must be 'free' or 'locked', got {rotation!r}")
+        if slide not in ("free", "locked"):
+            raise InputError(f"{owner}: slide must be 'free' or 'locked', got {slide!r}")
+        if on is None and (rotation != "free" or slide != "free"):
+            raise InputError(f"{owner}: rotation= and slide= apply to a slider on a member (on=); "
+                             "on the frame, a locked slide is a ground joint")
+        if on is not None and (not isinstance(on, str) or not on):
+            raise InputError(f"{owner}: on must be the name of a link or body, got {on!r}")
+        if axis is None and on is None:
+            axis = (1.0, 0.0)
+        ax = None
+        if axis is not None:
+            ax = np.asarray(_vec2(owner, "axis", axis))
+            big = float(np.max(np.abs(ax)))
+            if big == 0.0:
+                raise InputError(f"{owner}: axis must be a non-zero vector")
+            ax = ax / big                      # scaled first: a subnormal axis normalises exactly
+            ax = tuple(float(v) for v in ax / float(np.hypot(*ax)))
+        kind = "slider" if on is None else "slot"
+        return self._new_joint(Joint(name, _vec2(owner, "at", at), kind, axis=ax, on=on,
+                                     rotation=rotation, slide=slide))
+
+    def slot_line(self, joint: str) -> tuple[str, np.ndarray, np.ndarray]:
+        """The line of a slot joint: (origin joint of the member, offset, unit axis) in the reference.
+
+        Parameters
+        ----------
+        joint : str
+            A slider joint with ``on=``.
+
+        Returns
+        -------
+        origin : str
+            The member's first joint (a link's ``a``).
+        offset : ndarray, shape (2,)
+            From ``origin`` to the block in the reference configuration [m].
+        axis : ndarray, shape (2,)
+            Unit direction of the line in the reference configuration.
+        """
+        jt = self.joints[joint]
+        on = self.links.get(jt.on) or self.bodies.get(jt.on)
+        origin = on.a if jt.on in self.links else on.joints[0]
+        p0 = np.array(self.joints[origin].at)
+        if jt.axis is not None:
+            ax = np.array(jt.axis)
+        else:
+            lk = self.links[jt.on]
+            ax = (np.array(self.joints[lk.b].at) - p0) / lk.length
+        return origin, np.array(jt.at) - p0, ax
 
     # -------------------------------------------------------------- components
     def _check_component_name(self, kind: str, name: str):
@@ -815,6 +903,18 @@ class Mechanism:
         # the builder's graph, links and bodies only; every grounded part is one part (the frame)
         g = self.graph
         members = nx.subgraph_view(g, filter_edge=lambda u, v, k: g.edges[u, v, k]["kind"] in ("link", "body"))
+        self._check_slots()
+        for j in self.joints.values():
+            if isinstance(j.welded, tuple):
+                here = self.members_at(j.name)
+                for m in j.welded:
+                    if m not in here:
+                        raise InputError(f"joint '{j.name}': welded names '{m}', which is not attached there "
+                                         f"(members at '{j.name}': {', '.join(here) or 'none'})")
+        members = nx.Graph(members)
+        for j in self.joints.values():  # a block belongs to the part of its member
+            if j.kind == "slot":
+                members.add_edge(j.name, self._member_joints(j.on)[0])
         grounded, parts = set(), []
         for comp in nx.connected_components(members):
             if any(self.joints[j].kind in ("ground", "slider") for j in comp):
@@ -831,6 +931,42 @@ class Mechanism:
             if d.member not in self.links and d.member not in self.bodies:
                 raise InputError(f"drive on '{d.member}': unknown member")
         self._valid = state
+
+    def _check_slots(self) -> None:
+        """The member of every slot exists, carries the block's line, and the block lies on it."""
+        for j in self.joints.values():
+            if j.kind != "slot":
+                continue
+            owner = f"slider '{j.name}'"
+            if j.on not in self.links and j.on not in self.bodies:
+                known = ", ".join([*self.links, *self.bodies]) or "none"
+                raise InputError(f"{owner}: on='{j.on}' is not a link or body (members: {known})")
+            if j.name in self._member_joints(j.on):
+                raise InputError(f"{owner}: it is a joint of '{j.on}' itself; a block slides on a member "
+                                 "it is not an end of")
+            if j.on in self.bodies and j.axis is None:
+                raise InputError(f"{owner}: on a body, give the line's axis=")
+            lk = self.links.get(j.on)
+            if lk is None:
+                continue
+            if not lk.kinematic:
+                raise InputError(f"{owner}: link '{lk.name}' has kinematic=False; a block slides on a "
+                                 "link of the kinematics")
+            _o, d, ax = self.slot_line(j.name)
+            e1 = (np.array(self.joints[lk.b].at) - np.array(self.joints[lk.a].at)) / lk.length
+            xi = float(d @ e1)
+            off = float(d[0] * e1[1] - d[1] * e1[0])
+            if not lk.rigid:
+                if abs(off) > 1e-9 * lk.length or abs(ax[0] * e1[1] - ax[1] * e1[0]) > 1e-9:
+                    raise InputError(f"{owner}: on flexible link '{lk.name}' the block's line must be the "
+                                     f"link's axis (the block is {abs(off):.3g} m off it, axis {tuple(ax)}); "
+                                     "make the link rigid for an offset or oblique slot")
+                if lk.elements and self.links[lk.name].timoshenko:
+                    raise InputError(f"{owner}: a block on Timoshenko link '{lk.name}' is not supported "
+                                     "(the deflection under the block uses Euler-Bernoulli shape functions)")
+            if not -1e-9 * lk.length <= xi <= lk.length * (1 + 1e-9):
+                raise InputError(f"{owner}: the block is at abscissa {xi:.6g} m of link '{lk.name}', "
+                                 f"outside the link (0 to {lk.length:.6g} m)")
 
     def _fingerprint(self) -> tuple:
         """What :meth:`validate` depends on: the members, joints and drives (all immutable records)."""

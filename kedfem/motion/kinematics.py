@@ -173,7 +173,8 @@ class _LoopModel:
         self.passive = tuple(n for n, lk in mech.links.items() if not lk.kinematic)
         self.member_names = tuple([n for n in mech.links if n not in self.passive] + list(mech.bodies))
         self.mindex = {m: i for i, m in enumerate(self.member_names)}
-        self.slider_names = tuple(j.name for j in mech.joints.values() if j.kind == "slider")
+        self.slider_names = tuple(j.name for j in mech.joints.values()
+                                  if j.kind == "slider" or (j.kind == "slot" and j.slide == "free"))
         nm = len(self.member_names)
         # member reference data: reference joint, reference angle, local vectors
         theta0 = np.zeros(nm)
@@ -189,11 +190,25 @@ class _LoopModel:
                 p0 = np.array(mech.joints[b.joints[0]].at)
                 for j in b.joints[1:]:
                     edges.append((b.joints[0], j, "member", i, np.array(mech.joints[j].at) - p0))
+        axes = {}
         for j in mech.joints.values():
             if j.kind == "ground":
                 edges.append((GROUND, j.name, "ground", -1, np.array(j.at)))
             elif j.kind == "slider":
                 edges.append((GROUND, j.name, "slider", self.slider_names.index(j.name), np.array(j.at)))
+                axes[j.name] = np.array(j.axis)
+            elif j.kind == "slot":
+                # a line fixed in member i: w = R(theta_i) (d + s a), d and a in the member's frame
+                i = self.mindex[j.on]
+                origin, d, ax = mech.slot_line(j.name)
+                back = _rot(-theta0[i])
+                if j.slide == "free":
+                    k = self.slider_names.index(j.name)
+                    edges.append((origin, j.name, "slot", (i, k), back @ d))
+                    axes[j.name] = back @ ax
+                else:
+                    edges.append((origin, j.name, "member", i, back @ d))
+        self.slot_axis = axes
         self.theta0 = theta0
         self.edges = edges
         self._build_tree()
@@ -268,7 +283,7 @@ class _LoopModel:
         for j in mech.joints.values():
             if not j.welded:
                 continue
-            mem = [m for m in mech.members_at(j.name) if m in self.mindex]
+            mem = [m for m in mech.members_at(j.name) if m in self.mindex and j.welds(m)]
             idx = [self.mindex[m] for m in mem]
             if j.kind == "ground":
                 for i in idx:
@@ -277,6 +292,12 @@ class _LoopModel:
             else:
                 for i in idx[1:]:
                     rows.append((i, idx[0], 0.0, f"welded joint '{j.name}'"))
+        for j in mech.joints.values():
+            if j.kind == "slot" and j.rotation == "locked":
+                k = self.mindex[j.on]
+                for m in mech.members_at(j.name):
+                    if m in self.mindex and m != j.on:
+                        rows.append((self.mindex[m], k, 0.0, f"locked slider '{j.name}' on '{j.on}'"))
         self.welds = rows
 
     def _build_drives(self):
@@ -290,8 +311,11 @@ class _LoopModel:
         self.n_unknown = self.free_members.size + len(self.slider_names)
         self.n_eq = 2 * len(self.chords) + len(self.welds)
         # member index of each edge (-1 if not a member edge) and local vectors
-        self.edge_member = np.array([e[3] if e[2] == "member" else -1 for e in self.edges])
-        self.edge_slider = np.array([e[3] if e[2] == "slider" else -1 for e in self.edges])
+        self.edge_member = np.array([e[3] if e[2] == "member" else e[3][0] if e[2] == "slot" else -1
+                                     for e in self.edges])
+        self.edge_slider = np.array([e[3] if e[2] == "slider" else e[3][1] if e[2] == "slot" else -1
+                                     for e in self.edges])
+        self._slot_edges = np.array([e for e, ed in enumerate(self.edges) if ed[2] == "slot"], dtype=int)
         self.edge_vec0 = np.array([e[4] for e in self.edges])
         self._mem_edges = np.flatnonzero(self.edge_member >= 0)
         self._slider_edges = np.flatnonzero(self.edge_slider >= 0)
@@ -299,10 +323,10 @@ class _LoopModel:
         A = np.zeros((len(self.edges), nm))
         A[self._mem_edges, self.edge_member[self._mem_edges]] = 1.0
         self._Dm = self.D[:, :, None] * A[None]  # (nc, ne, nm)
-        axes = []
-        for name in self.slider_names:
-            axes.append(np.array(self.mech.joints[name].axis))
-        self.slider_axis = np.array(axes).reshape(-1, 2)
+        # slider axes: global for a fixed line, in the member's frame for a slot
+        self.slider_axis = np.array([self.slot_axis[name] for name in self.slider_names]).reshape(-1, 2)
+        self._fixed_slider_edges = np.array([e for e, ed in enumerate(self.edges) if ed[2] == "slider"],
+                                            dtype=int)
 
     def check_mobility(self):
         n_total = len(self.member_names) + len(self.slider_names)
@@ -331,11 +355,22 @@ class _LoopModel:
             v = self.edge_vec0[mem]
             w[..., mem, 0] = c * v[:, 0] - sn * v[:, 1]
             w[..., mem, 1] = sn * v[:, 0] + c * v[:, 1]
-        sl = self._slider_edges
+        sl = self._fixed_slider_edges
         if sl.size:
             k = self.edge_slider[sl]
             w[..., sl, :] += s[..., k, None] * self.slider_axis[k]
+        sl = self._slot_edges
+        if sl.size:
+            w[..., sl, :] += s[..., self.edge_slider[sl], None] * self.slot_directions(theta, sl)
         return w
+
+    def slot_directions(self, theta, edges=None):
+        """Unit directions of the slot lines ``R(theta_i) a``, shape (..., n_slot_edges, 2)."""
+        sl = self._slot_edges if edges is None else edges
+        th = theta[..., self.edge_member[sl]]
+        a = self.slider_axis[self.edge_slider[sl]]
+        c, sn = np.cos(th), np.sin(th)
+        return np.stack([c * a[:, 0] - sn * a[:, 1], sn * a[:, 0] + c * a[:, 1]], axis=-1)
 
     def residual(self, theta, s):
         w = self.edge_vectors(theta, s)
@@ -359,16 +394,40 @@ class _LoopModel:
         sw[..., 1] = w[..., 0]
         Jt = np.einsum("cem,...ed->...cdm", self._Dm, sw)
         J[..., : 2 * nc, :nm] = Jt.reshape(lead + (2 * nc, nm))
-        sl = self.edge_slider >= 0
-        if sl.any():
-            for e in np.flatnonzero(sl):
+        for e in self._fixed_slider_edges:
+            k = self.edge_slider[e]
+            J[..., : 2 * nc, nm + k] += (self.D[:, e, None] * self.slider_axis[k]).reshape(-1)
+        if self._slot_edges.size:
+            u = self.slot_directions(theta)  # (..., n_slot, 2)
+            for c, e in enumerate(self._slot_edges):
                 k = self.edge_slider[e]
-                J[..., : 2 * nc, nm + k] += (self.D[:, e, None] * self.slider_axis[k]).reshape(-1)
+                J[..., : 2 * nc, nm + k] += (self.D[:, e, None] * u[..., c, None, :]).reshape(lead + (-1,))
         for r, (i, j, _c, _d) in enumerate(self.welds):
             J[..., 2 * nc + r, i] = 1.0
             if j >= 0:
                 J[..., 2 * nc + r, j] = -1.0
         return J
+
+    def check_slots(self, s, crank):
+        """Raise :class:`KinematicsError` when a block runs off the end of its link.
+
+        ``s`` (n, n_sliders) travels [m], ``crank`` (n,) the crank angle [rad].
+        """
+        for e in self._slot_edges:
+            name = self.edges[e][1]
+            lk = self.mech.links.get(self.mech.joints[name].on)
+            if lk is None:
+                continue
+            k = self.edge_slider[e]
+            xi = self.edge_vec0[e][0] + s[:, k] * self.slider_axis[k][0]
+            tol = 1e-9 * lk.length
+            out = np.flatnonzero((xi < -tol) | (xi > lk.length + tol))
+            if out.size:
+                i = int(out[0])
+                raise KinematicsError(
+                    f"{self.mech.name}: the block of slider '{name}' runs off link '{lk.name}' at crank "
+                    f"angle {math.degrees(float(crank[i])):.3f} deg: its abscissa {xi[i]:.6g} m is outside "
+                    f"the link (0 to {lk.length:.6g} m); lengthen '{lk.name}' or shorten the stroke")
 
     def unknown_columns(self):
         nm = len(self.member_names)
@@ -424,7 +483,14 @@ def _rates(model, theta, s, th_drive_rate, cols):
     mem = model.edge_member >= 0
     om_e = np.zeros((n, len(model.edges)))
     om_e[:, mem] = omega[:, model.edge_member[mem]]
-    quad = np.einsum("ce,ne,ned->ncd", model.D, om_e**2, w).reshape(n, -1)
+    quad = np.einsum("ce,ne,ned->ncd", model.D, om_e**2, w)
+    sl = model._slot_edges
+    if sl.size:  # Coriolis: the slot turns while the block slides, 2 omega s' S u
+        cor = np.zeros_like(w)
+        cor[:, sl] = 2.0 * (om_e[:, sl] * sd[:, model.edge_slider[sl]])[..., None] \
+            * (model.slot_directions(theta) @ _S.T)
+        quad = quad - np.einsum("ce,ned->ncd", model.D, cor)
+    quad = quad.reshape(n, -1)
     rhs_a = np.concatenate([quad, np.zeros((n, len(model.welds)))], axis=1)
     ydd = np.linalg.solve(Ju, rhs_a[..., None])[..., 0]
     alpha, sdd = _split(model, ydd, np.zeros_like(th_drive_rate))
@@ -442,11 +508,17 @@ def _joint_states(model, theta, s, omega, sd, alpha, sdd):
     sw = w @ _S.T
     wd = om_e[..., None] * sw
     wdd = al_e[..., None] * sw - (om_e**2)[..., None] * w
-    sl = model.edge_slider >= 0
-    if sl.any():
+    sl = model._fixed_slider_edges
+    if sl.size:
         k = model.edge_slider[sl]
         wd[:, sl] = sd[:, k, None] * model.slider_axis[k]
         wdd[:, sl] = sdd[:, k, None] * model.slider_axis[k]
+    sl = model._slot_edges
+    if sl.size:
+        u = model.slot_directions(theta)
+        k = model.edge_slider[sl]
+        wd[:, sl] += sd[:, k, None] * u
+        wdd[:, sl] += sdd[:, k, None] * u + 2.0 * (om_e[:, sl] * sd[:, k])[..., None] * (u @ _S.T)
     r = np.einsum("je,ned->njd", model.P, w)
     v = np.einsum("je,ned->njd", model.P, wd)
     a = np.einsum("je,ned->njd", model.P, wdd)
@@ -498,6 +570,7 @@ class Cycle:
         self.yc = yc
         if cols.size:
             theta, sl = _split(model, yc, model.drive_angles(tc))
+            model.check_slots(sl, model.drive_angles(tc)[:, 0])
             omega, sd, _al, _sdd = _rates(model, theta, sl, np.broadcast_to(
                 model.drive_speed, (tc.size, model.drive_idx.size)), cols)
             self.ydc = np.concatenate([omega[:, model.free_members], sd], axis=1)
@@ -692,6 +765,7 @@ def _motion(model: _LoopModel, t, crank, y, period):
         sd = sdd = np.zeros_like(s)
     res = model.residual(theta, s)
     resid = float(np.max(np.abs(res))) if res.size else 0.0
+    model.check_slots(s, crank)
     r, v, a = _joint_states(model, theta, s, omega, sd, alpha, sdd)
     names, theta, omega, alpha, ref = _with_passive(model, r, v, a, theta, omega, alpha)
     return Motion(model.mech.name, t, crank, period, model.joint_names, names,

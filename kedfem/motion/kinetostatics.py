@@ -71,6 +71,13 @@ class JointForces:
     frame_moment : dict
         Joint name -> (n,) moment of the frame on the pin [N m], at the
         ground joints that take one (clamped, or an elastically clamped end).
+    contact : dict
+        Slot joint name -> (n, 2) force [N] the member ``on`` exerts on the
+        block's pin: normal to the line (and along it when the slide is
+        locked); the pin exerts the opposite on the member, at the pin.
+    contact_moment : dict
+        Slot joint name -> (n,) moment [N m] the member exerts on the pin
+        of a rotation-locked slot.
     """
 
     pairs: tuple[tuple[str, str], ...]
@@ -80,6 +87,8 @@ class JointForces:
     frame_reaction: dict
     residual: float
     frame_moment: dict = field(default_factory=dict)
+    contact: dict = field(default_factory=dict)
+    contact_moment: dict = field(default_factory=dict)
 
     def on(self, member: str, joint: str) -> np.ndarray:
         """Force (n, 2) [N] the pin at ``joint`` exerts on ``member``."""
@@ -182,10 +191,11 @@ class _Layout:
                 col += 2
         self.m_col = {}
         for p in self.pairs:
-            if p[0] not in given and (mech.joints[p[1]].welded or p in extra_m):
+            if p[0] not in given and (mech.joints[p[1]].welds(p[0]) or p in extra_m or _locked(mech, *p)):
                 self.m_col[p] = col
                 col += 1
         self.g_col, self.gm_col, self.s_col = {}, {}, {}
+        self.c_col, self.cm_col = {}, {}  # slots: normal contact force, and moment when locked
         for j in mech.joints.values():
             if j.kind == "ground":
                 self.g_col[j.name] = col
@@ -196,6 +206,12 @@ class _Layout:
             elif j.kind == "slider":
                 self.s_col[j.name] = col
                 col += 1
+            elif j.kind == "slot":
+                self.c_col[j.name] = col
+                col += 1 if j.slide == "free" else 2
+                if j.rotation == "locked":
+                    self.cm_col[j.name] = col
+                    col += 1
         self.d_col = []  # None: known, or acting through a clamped ground joint's moment
         for d in mech.drives:
             if d.member in kt or mech.joints[d.ground_joint].welded:
@@ -204,9 +220,27 @@ class _Layout:
                 self.d_col.append(col)
                 col += 1
         self.n_unk = col
-        moment_joints = {p[1] for p in self.m_col} | set(self.gm_col) | {p[1] for p in km}
+        moment_joints = {p[1] for p in self.m_col} | set(self.gm_col) | {p[1] for p in km} | set(self.cm_col)
         self.moment_joints = [j for j in self.joints if j in moment_joints]
         self.n_eq = 3 * len(self.members) + 2 * len(self.joints) + len(self.moment_joints)
+
+
+def _locked(mech: Mechanism, member: str, joint: str) -> bool:
+    """``member`` is locked in rotation to the member a slot joint slides on."""
+    jt = mech.joints[joint]
+    return jt.kind == "slot" and jt.rotation == "locked" and member != jt.on
+
+
+def _contact_directions(mech, motion, joint):
+    """Unit directions (n, k, 2) of the contact force components of a slot: its normal (and its line)."""
+    jt = mech.joints[joint]
+    i = motion.member_names.index(jt.on)
+    th = motion.theta[:, i] - motion.theta_ref[i]
+    _o, _d, ax = mech.slot_line(joint)
+    c, s_ = np.cos(th), np.sin(th)
+    u = np.stack([c * ax[0] - s_ * ax[1], s_ * ax[0] + c * ax[1]], axis=-1)
+    nrm = np.stack([-u[:, 1], u[:, 0]], axis=-1)
+    return nrm[:, None] if jt.slide == "free" else np.stack([nrm, u], axis=1)
 
 
 def _equations(mech, motion, lay: _Layout, inertia, gravity, joint_loads, member_moments,
@@ -288,6 +322,19 @@ def _equations(mech, motion, lay: _Layout, inertia, gravity, joint_loads, member
             nrm = np.array([-jt.axis[1], jt.axis[0]])
             A[:, rr, lay.s_col[jname]] = nrm[0]
             A[:, rr + 1, lay.s_col[jname]] = nrm[1]
+        if jname in lay.c_col:  # the slot's member pushes the pin, the pin the member (at the pin)
+            dirs = _contact_directions(mech, motion, jname)
+            c0 = lay.c_col[jname]
+            A[:, rr:rr + 2, c0:c0 + dirs.shape[1]] = np.swapaxes(dirs, 1, 2)
+            if jt.on in lay.members:
+                r1 = 3 * lay.members.index(jt.on)
+                rc = member_centre(mech, motion, jt.on)[0]
+                arm = motion.r[:, jn] - rc
+                A[:, r1:r1 + 2, c0:c0 + dirs.shape[1]] = -np.swapaxes(dirs, 1, 2)
+                A[:, r1 + 2, c0:c0 + dirs.shape[1]] = -(arm[:, None, 0] * dirs[..., 1]
+                                                        - arm[:, None, 1] * dirs[..., 0])
+                if jname in lay.cm_col:
+                    A[:, r1 + 2, lay.cm_col[jname]] = -1.0
         if inertia:
             rhs += pm_mass[jn] * motion.a[:, jn]
         rhs += pm_mass[jn] * elastic("joint_acceleration", jn)
@@ -304,6 +351,8 @@ def _equations(mech, motion, lay: _Layout, inertia, gravity, joint_loads, member
                     b[:, wr] += km[p]
             if jname in lay.gm_col:
                 A[:, wr, lay.gm_col[jname]] = 1.0
+            if jname in lay.cm_col:
+                A[:, wr, lay.cm_col[jname]] = 1.0
             if inertia and here:
                 b[:, wr] += pm_J[jn] * motion.alpha[:, midx[here[0][0]]]
             b[:, wr] += pm_J[jn] * elastic("joint_angular_acceleration", jn)
@@ -451,7 +500,13 @@ def kinetostatics(mech: Mechanism, motion: Motion, *, inertia: bool = True,
         jt = mech.joints[j]
         frame[j] = x[:, c:c + 1] * np.array([-jt.axis[1], jt.axis[0]])
     frame_moment = {j: x[:, c] for j, c in lay.gm_col.items()}
-    return JointForces(tuple(pairs), force, moment, torque, frame, rel, frame_moment)
+    contact = {}
+    for j, c in lay.c_col.items():
+        dirs = _contact_directions(mech, motion, j)
+        contact[j] = np.einsum("nk,nkd->nd", x[:, c:c + dirs.shape[1]], dirs)
+    contact_moment = {j: x[:, c] for j, c in lay.cm_col.items()}
+    return JointForces(tuple(pairs), force, moment, torque, frame, rel, frame_moment, contact,
+                       contact_moment)
 
 
 def link_axial_force(mech: Mechanism, motion: Motion, forces: JointForces, link: str,

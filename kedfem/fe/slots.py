@@ -1,0 +1,247 @@
+"""Blocks on members: the constraint forms of a slot joint's translation and locked rotation.
+
+A block ``B`` slides along a line fixed in a moving member ``M`` (a
+prismatic pair between moving members, :meth:`kedfem.Mechanism.slider` with
+``on=``). With ``u(t)`` the line's direction, ``n = S u`` its normal,
+``xi(t)`` the block's abscissa on ``M`` and ``x_M(xi)`` the elastic
+displacement of the material point of ``M`` under the block:
+
+* slide free: ``x_B = u q_s + n (n^T x_M(xi))``; the block's own DOF
+  ``q_s`` is its elastic travel along the line, its transverse displacement
+  is the member's;
+* slide locked (a pin on the member at any abscissa): ``x_B = x_M(xi)``;
+* rotation locked (a piston in its cylinder): the elastic rotation of the
+  members at ``B`` is the slope of ``M`` under the block.
+
+For a rigid ``M``, ``x_M`` is the member's body point at ``B``; for a
+flexible link it is the element under the block interpolated with the
+element's own shape functions (linear axial, cubic Hermite transverse),
+evaluated at the current abscissa. The forms therefore vary in time as the
+block moves, and their time derivatives (the transport terms) include the
+sliding rate: ``d/dt N(zeta) = N_zeta zeta'``. The contact force then moves
+along the beam through ``E^T``, as a moving load does.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = ["slot_point_form", "slot_rotation_form", "hermite"]
+
+_S = np.array([[0.0, -1.0], [1.0, 0.0]])
+
+
+def hermite(z: np.ndarray, order: int) -> np.ndarray:
+    """Derivative ``order`` (0-3) of the cubic Hermite functions w.r.t. ``zeta``.
+
+    Parameters
+    ----------
+    z : ndarray, shape (nt,)
+        Fractions of the element length, 0 at node 1, 1 at node 2.
+    order : int
+
+    Returns
+    -------
+    ndarray, shape (4, nt)
+        ``H1, H2, H3, H4`` with ``v = H1 v1 + L H2 theta1 + H3 v2 + L H4 theta2``.
+    """
+    one, z2, z3 = np.ones_like(z), z * z, z * z * z
+    if order == 0:
+        return np.stack([1 - 3 * z2 + 2 * z3, z - 2 * z2 + z3, 3 * z2 - 2 * z3, -z2 + z3])
+    if order == 1:
+        return np.stack([-6 * z + 6 * z2, 1 - 4 * z + 3 * z2, 6 * z - 6 * z2, -2 * z + 3 * z2])
+    if order == 2:
+        return np.stack([-6 + 12 * z, -4 + 6 * z, 6 - 12 * z, -2 + 6 * z])
+    return np.stack([12 * one, 6 * one, -12 * one, 6 * one])
+
+
+def _chain(f, z1, z2):
+    """Value and time derivatives of ``f(zeta(t))`` from ``f = (f, f_z, f_zz)``."""
+    return f[0], f[1] * z1, f[2] * z1**2 + f[1] * z2
+
+
+def _line(fe, joint, motion):
+    """Direction ``u`` of the block's line with its time derivatives, each (nt, 2), and the abscissa."""
+    mech = fe.mech
+    jt = mech.joints[joint]
+    i = motion.member_names.index(jt.on)
+    th = motion.theta[:, i] - motion.theta_ref[i]
+    w, al = motion.omega[:, i, None], motion.alpha[:, i, None]
+    _origin, d, ax = mech.slot_line(joint)
+    c, s_ = np.cos(th), np.sin(th)
+    u = np.stack([c * ax[0] - s_ * ax[1], s_ * ax[0] + c * ax[1]], axis=-1)
+    su = u @ _S.T
+    nt = motion.n
+    xi = np.zeros((3, nt))
+    if jt.on in mech.links:
+        lk = mech.links[jt.on]
+        e1 = (np.array(mech.joints[lk.b].at) - np.array(mech.joints[lk.a].at)) / lk.length
+        xi[0] = d @ e1
+        if jt.slide == "free":
+            k = motion.slider_names.index(joint)
+            cos = float(ax @ e1)
+            xi[0] = xi[0] + motion.s[:, k] * cos
+            xi[1] = motion.sd[:, k] * cos
+            xi[2] = motion.sdd[:, k] * cos
+    return (u, w * su, al * su - w**2 * u), xi
+
+
+def _rotate(v):
+    """(v, v', v'') of a direction -> those of ``S v``."""
+    return tuple(x @ _S.T for x in v)
+
+
+class _Sum:
+    """Accumulates ``sum_terms d(t) g(t)^T x_entity(t)`` as an affine form over the union of columns."""
+
+    def __init__(self, nt: int, dim: int):
+        self.nt, self.dim = nt, dim
+        self.cols: list[int] = []
+        self.parts: list = []  # (positions, C, C1, C2) each (nt, dim, k)
+        self.p = None
+
+    def _positions(self, cols):
+        pos = []
+        for c in cols:
+            if c not in self.cols:
+                self.cols.append(c)
+            pos.append(self.cols.index(c))
+        return pos
+
+    def add(self, d, w, form, proj=None):
+        """Add ``d (w proj^T x)`` (a point entity) or ``d (w x)`` (a rotation, ``proj`` None).
+
+        ``d``, ``proj``: directions with their time derivatives, each (nt, dim) / (nt, 2);
+        ``w``: scalar weights (w, w', w''), each (nt,); ``form``: the entity's affine form.
+        """
+        cols, C, C1, C2, p, p1, p2 = form
+        nt = self.nt
+        if proj is not None:  # g = w proj
+            g = (w[0][:, None] * proj[0], w[1][:, None] * proj[0] + w[0][:, None] * proj[1],
+                 w[2][:, None] * proj[0] + 2 * w[1][:, None] * proj[1] + w[0][:, None] * proj[2])
+        else:
+            g = tuple(x[:, None] for x in w)
+        z = np.zeros((nt,) + C.shape[1:])
+        X = (np.broadcast_to(C, z.shape), z if C1 is None else np.broadcast_to(C1, z.shape),
+             z if C2 is None else np.broadcast_to(C2, z.shape))
+        a = _product(g, X, "tw,twk->tk")
+        self.parts.append((self._positions(cols),) + _product(d, a, "td,tk->tdk"))
+        if p is not None:
+            zp = np.zeros((nt, C.shape[1]))
+            P = (p, zp if p1 is None else p1, zp if p2 is None else p2)
+            b = _product(g, P, "tw,tw->t")
+            q = _product(d, b, "td,t->td")
+            self.p = q if self.p is None else tuple(x + y for x, y in zip(self.p, q))
+
+    def add_own(self, d, cols):
+        """The block's own DOF along ``d``."""
+        self.parts.append((self._positions(cols), d[0][..., None], d[1][..., None], d[2][..., None]))
+
+    def form(self, order):
+        """The affine form ``(cols, C, C1, C2, p, p1, p2)`` with the columns in ``order``."""
+        cols = list(order)
+        C = np.zeros((3, self.nt, self.dim, len(cols)))
+        for pos, *Ms in self.parts:
+            for j, pj in enumerate(pos):
+                at = cols.index(self.cols[pj])
+                for o in range(3):
+                    C[o, :, :, at] += Ms[o][..., j]
+        p = (None, None, None) if self.p is None else self.p
+        return (tuple(cols), C[0], C[1], C[2]) + tuple(p)
+
+
+def _product(f, g, spec):
+    """Value, first and second time derivative of the product ``f g`` (Leibniz)."""
+    return (np.einsum(spec, f[0], g[0]),
+            np.einsum(spec, f[1], g[0]) + np.einsum(spec, f[0], g[1]),
+            np.einsum(spec, f[2], g[0]) + 2 * np.einsum(spec, f[1], g[1]) + np.einsum(spec, f[0], g[2]))
+
+
+def _beam_terms(fe, joint, motion, pform, rform, acc: _Sum, u, xi, what: str):
+    """Add the flexible link's displacement under the block to ``acc``.
+
+    ``what``: ``"normal"`` (n n^T x_M), ``"full"`` (x_M) or ``"slope"`` (theta_M).
+    """
+    mech = fe.mech
+    lk = mech.links[mech.joints[joint].on]
+    pts, rots = fe.link_nodes[lk.name]
+    ne = lk.elements
+    Le = lk.length / ne
+    nt = motion.n
+    e = np.clip(np.floor(xi[0] / Le).astype(int), 0, ne - 1)
+    z = xi[0] / Le - e
+    z1, z2 = xi[1] / Le, xi[2] / Le
+    n = _rotate(u)
+    rows = np.arange(nt)
+    orders = (1, 2, 3) if what == "slope" else (0, 1, 2)
+    H = [hermite(z, k) / (Le if what == "slope" else 1.0) for k in orders]  # d/dx = d/dzeta / Le
+    # weights of every node (nt, ne + 1): transverse point (H1, H3) and rotation (Le H2, Le H4) terms
+    wv = np.zeros((3, nt, ne + 1))
+    wr = np.zeros((3, nt, ne + 1))
+    for o, val in enumerate(_chain(H, z1, z2)):
+        wv[o, rows, e] += val[0]
+        wv[o, rows, e + 1] += val[2]
+        wr[o, rows, e] += Le * val[1]
+        wr[o, rows, e + 1] += Le * val[3]
+    wa = np.zeros((3, nt, ne + 1))  # the axial part, linear in zeta
+    for o, (v1, v2) in enumerate(((1 - z, z), (-z1, z1), (-z2, z2))):
+        wa[o, rows, e] += v1
+        wa[o, rows, e + 1] += v2
+    one = (np.ones((nt, 1)), np.zeros((nt, 1)), np.zeros((nt, 1)))
+    d = one if what == "slope" else n
+    for j in range(ne + 1):
+        if not np.any(wa[0, :, j]) and not np.any(wr[0, :, j]):
+            continue  # the block never reaches this node's elements
+        acc.add(d, tuple(wv[:, :, j]), pform(pts[j]), proj=n)
+        acc.add(d, tuple(wr[:, :, j]), rform(rots[j]))
+        if what == "full":
+            acc.add(u, tuple(wa[:, :, j]), pform(pts[j]), proj=u)
+
+
+def slot_point_form(fe, pid: int, motion, pform, rform):
+    """Affine form ``(cols, C, C1, C2, p, p1, p2)`` of a slot joint's translation (see module docstring).
+
+    ``C`` (nt, 2, k) and its first and second time derivatives; ``p`` (nt, 2) or None.
+    """
+    pd = fe.points[pid]
+    joint = pd.loc[1]
+    jt = fe.mech.joints[joint]
+    u, xi = _line(fe, joint, motion)
+    n = _rotate(u)
+    acc = _Sum(motion.n, 2)
+    if jt.slide == "free":
+        acc.add_own(u, pd.cols)
+    support = fe.slot_support.get(joint)
+    if support is not None:  # a rigid member: its body point under the block
+        form = pform(support)
+        if jt.slide == "free":
+            acc.add(n, (np.ones(motion.n), np.zeros(motion.n), np.zeros(motion.n)), form, proj=n)
+        else:
+            return form
+    else:
+        _beam_terms(fe, joint, motion, pform, rform, acc, u, xi, "normal" if jt.slide == "free" else "full")
+    return acc.form(fe.entity_cols("P", pid))
+
+
+def slot_rotation_form(fe, rid: int, motion, pform, rform):
+    """Affine form of the elastic rotation of a member locked to a slot: the slope under the block."""
+    rd = fe.rots[rid]
+    joint = rd.slot
+    u, xi = _line(fe, joint, motion)
+    acc = _Sum(motion.n, 1)
+    _beam_terms(fe, joint, motion, pform, rform, acc, u, xi, "slope")
+    return acc.form(fe.entity_cols("R", rid))
+
+
+def support_entities(fe, joint: str) -> list[tuple[str, int]]:
+    """The entities a slot joint's forms draw on: the member's body point, or its nodes' points and rotations."""
+    if joint in fe.slot_support:
+        return [("P", fe.slot_support[joint])]
+    lk = fe.mech.links[fe.mech.joints[joint].on]
+    if lk.name not in fe.link_nodes:
+        raise InputError(f"slider '{joint}' slides on link '{lk.name}', which is reduced (Craig-Bampton); "
+                         "keep the slotted link unreduced")
+    pts, rots = fe.link_nodes[lk.name]
+    return [("P", p) for p in pts] + [("R", r) for r in rots]
