@@ -6,6 +6,7 @@ from .errors import (AccuracyWarning, ConvergenceWarning, InputError, Instabilit
 from .model.materials import Material, Section
 from .model.mechanism import Mechanism
 from .motion.kinematics import Cycle, Motion, kinematics, kinematics_at, static_motion
+from .motion.stroke import Stroke, stroke
 from .fe.model import FEModel
 from .fe.effects import EFFECTS, ModalDamping, Rayleigh
 from .motion.kinetostatics import kinetostatics

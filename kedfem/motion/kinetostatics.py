@@ -516,7 +516,8 @@ def link_axial_force(mech: Mechanism, motion: Motion, forces: JointForces, link:
     ``N(s) = rhoA (s a_a.e1 - omega^2 s^2 / 2) - F_a.e1 - rhoA s g.e1``
     (tension positive), from the balance of the part ``[0, s]`` of the link
     with the force ``F_a`` the pin at ``a`` exerts on it; averaged over each
-    segment in closed form.
+    segment in closed form. A pin on the link (a slot with a locked slide)
+    adds the axial part of its force beyond its abscissa.
 
     Parameters
     ----------
@@ -541,5 +542,15 @@ def link_axial_force(mech: Mechanism, motion: Motion, forces: JointForces, link:
     w2 = motion.omega[:, mi] ** 2
     sm = 0.5 * (s1 + s2)
     sq = (s1**2 + s1 * s2 + s2**2) / 3.0
-    return (rhoA * (aa[:, None] * sm - 0.5 * w2[:, None] * sq) - Fa[:, None]
-            - rhoA * ge[:, None] * sm)
+    N = (rhoA * (aa[:, None] * sm - 0.5 * w2[:, None] * sq) - Fa[:, None]
+         - rhoA * ge[:, None] * sm)
+    for j, F in forces.contact.items():  # a block pinned on the link pushes it along its axis
+        jt = mech.joints[j]
+        if jt.on != link or jt.slide != "locked":
+            continue
+        _o, d, _ax = mech.slot_line(j)
+        e0 = (np.array(mech.joints[lk.b].at) - np.array(mech.joints[lk.a].at)) / lk.length
+        xi = float(d @ e0)
+        beyond = np.clip((s2 - xi) / np.maximum(s2 - s1, 1e-300), 0.0, 1.0)  # share of the segment past xi
+        N = N + np.einsum("nd,nd->n", F, e1)[:, None] * beyond  # the pin's force on the link is -F
+    return N

@@ -1,0 +1,116 @@
+"""Stroke and time ratio of a reciprocating joint (a quick-return's ram, a slider-crank's piston)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import brentq
+
+from ..errors import InputError, KinematicsError
+from ..model.mechanism import Mechanism
+from .kinematics import Cycle
+
+__all__ = ["Stroke", "stroke"]
+
+#: Instants of the scan for the dead centres (refined by root finding)
+SCAN = 720
+
+
+@dataclass(frozen=True)
+class Stroke:
+    """The two dead centres of a joint's motion along an axis over one cycle.
+
+    Attributes
+    ----------
+    joint : str
+    axis : ndarray, shape (2,)
+        Unit direction the position is measured along.
+    length : float
+        Stroke: distance between the dead centres along ``axis`` [m].
+    times : ndarray, shape (2,)
+        Instants of the rear (smallest position) and front dead centre [s].
+    crank_angles : ndarray, shape (2,)
+        Crank angles at those instants [rad].
+    forward_time, return_time : float
+        Time from rear to front dead centre (motion along +axis), and back [s].
+    """
+
+    joint: str
+    axis: np.ndarray
+    length: float
+    times: np.ndarray
+    crank_angles: np.ndarray
+    forward_time: float
+    return_time: float
+
+    @property
+    def time_ratio(self) -> float:
+        """Slow stroke over quick stroke (>= 1): the quick-return ratio."""
+        return max(self.forward_time, self.return_time) / min(self.forward_time, self.return_time)
+
+
+def stroke(mechanism: Mechanism, joint: str, axis=None) -> Stroke:
+    """Dead centres, stroke and time ratio of ``joint`` along ``axis``.
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+        A driven linkage.
+    joint : str
+        The reciprocating joint.
+    axis : (float, float), optional
+        Direction of the stroke; default the joint's slider axis.
+
+    Returns
+    -------
+    Stroke
+
+    Raises
+    ------
+    InputError
+        Unknown joint, or no axis for a joint that is not on a fixed slider.
+    KinematicsError
+        The joint does not reverse exactly twice per cycle along ``axis``.
+    """
+    if joint not in mechanism.joints:
+        raise InputError(f"stroke: unknown joint '{joint}' (joints: {', '.join(mechanism.joints)})")
+    jt = mechanism.joints[joint]
+    if axis is None:
+        if jt.kind != "slider":
+            raise InputError(f"stroke: joint '{joint}' is not on a fixed slider; give the axis=")
+        axis = jt.axis
+    ax = np.asarray(axis, dtype=float).reshape(-1)
+    if ax.shape != (2,) or not np.all(np.isfinite(ax)) or not np.hypot(*ax) > 0:
+        raise InputError(f"stroke: axis must be a non-zero pair of numbers, got {axis!r}")
+    ax = ax / np.hypot(*ax)
+    cyc = Cycle(mechanism)
+    T = cyc.period
+    t = np.arange(SCAN) * (T / SCAN)
+    mo = cyc.at(t)
+    v = mo.velocity(joint) @ ax
+    flips = np.flatnonzero(np.sign(v) != np.sign(np.roll(v, -1)))
+    if flips.size != 2:
+        raise KinematicsError(f"stroke: joint '{joint}' of {mechanism.name} reverses {flips.size} times per "
+                              "cycle along the axis; a stroke has two dead centres")
+
+    def speed(time):
+        return float(cyc.at(np.array([time])).velocity(joint)[0] @ ax)
+
+    dead = []
+    for k in flips:
+        a, b = t[k], min(t[k] + T / SCAN, T)
+        fa, fb = speed(a), speed(b)
+        if fa * fb > 0.0:  # a dead centre on a sample, the signs there rounding noise
+            dead.append(a if abs(fa) < abs(fb) else b)
+        else:
+            dead.append(brentq(speed, a, b, xtol=1e-15 * T, rtol=4 * np.finfo(float).eps))
+    dead = np.array(dead)
+    pos = np.array([cyc.at(np.array([d])).position(joint)[0] @ ax for d in dead])
+    order = np.argsort(pos)
+    dead, pos = dead[order], pos[order]
+    fwd = (dead[1] - dead[0]) % T
+    crank = cyc.model.drive_angles(dead)[:, 0]
+    return Stroke(joint, ax, float(pos[1] - pos[0]), dead, crank, float(fwd), float(T - fwd))
+
+
