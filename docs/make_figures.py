@@ -64,8 +64,49 @@ def mould_pictures():
     print(kf.table3().table())
 
 
+def whitworth_pictures():
+    """The Whitworth preset: the slotted lever's deflection over the cycle, a render and the cycle GIF."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from kedfem.fe.slots import block_abscissa
+    res = kf.solve(kf.Scene(mechanisms.build("whitworth"), effects=("inertia", "coupling", "axial_stiffening"),
+                            damping=kf.ModalDamping(0.02)))
+    lever = res.model.mech.links["lever"]
+    xi = np.linspace(0.0, 1.0, 61)
+    shape = np.stack([res.deflection("lever", x) for x in xi], axis=1) * 1e3  # (n, 61) [mm]
+    block = block_abscissa(res.model, "A", res.motion)
+    fig = Figure(figsize=(8, 4.4))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(111)
+    deg = np.degrees(res.crank_angle) % 360
+    picks = [int(np.argmin(np.abs((deg - a + 180) % 360 - 180))) for a in range(0, 360, 30)]
+    import matplotlib
+    cmap = matplotlib.colormaps["twilight"]
+    for k in picks:
+        col = cmap(deg[k] / 360)
+        ax.plot(xi * lever.length * 1e3, shape[k], color=col, label=f"{deg[k]:.0f} deg")
+        ax.plot(block[k] * 1e3, np.interp(block[k] / lever.length, xi, shape[k]), "o", color=col)
+    ax.set_xlabel("abscissa along the lever from O4 [mm] (dots: the sliding block)")
+    ax.set_ylabel("deflection [mm]")
+    ax.set_title("Whitworth quick-return, 120 rpm: the slotted lever under the moving block")
+    ax.grid(alpha=0.3)
+    ax.legend(ncol=2, fontsize=7, title="crank angle")
+    fig.tight_layout()
+    fig.savefig(IMG / "whitworth_lever.png", dpi=110)
+    with tempfile.TemporaryDirectory() as tmp:
+        series = export.write_vtk_series(res, tmp, scale=100.0)
+        frames = sorted(Path(tmp).glob("response/*.vtu"))
+        peak = res.peaks()[1]
+        k = int(np.argmin(np.abs(np.mod(res.crank_angle, 2 * math.pi) - peak.stress_angle)))
+        render.render_frame(frames[k * len(frames) // res.n], IMG / "whitworth_render.png",
+                            title="Whitworth quick-return, deformation x 100, colour: stress [MPa]")
+        render.render_animation(series, IMG / "whitworth_cycle.gif", max_frames=36, fps=10)
+    print(res.summary())
+
+
 if __name__ == "__main__":
     os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
     IMG.mkdir(parents=True, exist_ok=True)
     slider_crank_peaks()
     mould_pictures()
+    whitworth_pictures()

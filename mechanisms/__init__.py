@@ -16,7 +16,8 @@ from kedfem.errors import InputError
 
 __all__ = ["available", "get", "build"]
 
-_NAMES = ("mould_oscillator", "slider_crank", "four_bar", "six_bar", "exciter")
+_NAMES = ("mould_oscillator", "slider_crank", "four_bar", "six_bar", "exciter", "whitworth",
+          "inverted_slider_crank")
 
 
 def available() -> tuple[str, ...]:

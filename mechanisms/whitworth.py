@@ -22,8 +22,8 @@ import kedfem as kf
 from kedfem.catalogue import Preset
 
 DEFAULTS = dict(crank=0.10, offset=0.05, lever=0.30, link=0.45, ram_mass=2.0, block_mass=0.2,
-                speed=2 * math.pi, E=2.0e11, rho=7850.0, lever_width=0.012, lever_height=0.025,
-                link_width=0.010, link_height=0.020, crank_height=0.04, lever_elements=8,
+                speed=4 * math.pi, E=2.0e11, rho=7850.0, lever_width=0.012, lever_height=0.025,
+                link_width=0.010, link_height=0.020, crank_height=0.04, lever_elements=16,
                 link_elements=4, crank_elements=2, rigid_link=False, crank_angle=math.pi / 2)
 #: Preset scene: the linear KED effects, 2 % modal damping.
 PRESET = Preset(effects=("inertia", "coupling", "axial_stiffening"), damping=kf.ModalDamping(0.02))
@@ -31,10 +31,10 @@ SIGNED_PARAMETERS = ("crank_angle", "speed")
 
 
 def build(crank: float = 0.10, offset: float = 0.05, lever: float = 0.30, link: float = 0.45,
-          ram_mass: float = 2.0, block_mass: float = 0.2, speed: float = 2 * math.pi,
+          ram_mass: float = 2.0, block_mass: float = 0.2, speed: float = 4 * math.pi,
           E: float = 2.0e11, rho: float = 7850.0, lever_width: float = 0.012,
           lever_height: float = 0.025, link_width: float = 0.010, link_height: float = 0.020,
-          crank_height: float = 0.04, lever_elements: int = 8, link_elements: int = 4,
+          crank_height: float = 0.04, lever_elements: int = 16, link_elements: int = 4,
           crank_elements: int = 2, rigid_link: bool = False,
           crank_angle: float = math.pi / 2) -> kf.Mechanism:
     """Whitworth quick-return with a flexible slotted lever.
@@ -90,5 +90,6 @@ def build(crank: float = 0.10, offset: float = 0.05, lever: float = 0.30, link: 
     m.link("link", "C", "D", material=steel, section=kf.Section.rectangle(link_width, link_height),
            elements=link_elements, rigid=bool(rigid_link))
     m.point_mass("D", ram_mass)
+    m.point_mass("A", block_mass)
     m.drive("crank", speed=speed)
     return m

@@ -95,6 +95,17 @@ def test_quasi_static_moving_load_matches_the_cantilever_closed_form():
     closed = -F * a**2 * (3 * L - a) / (6 * EI)  # cantilever, point load at a, deflection at L
     assert np.max(np.abs(a - 0.25)) > 0.09  # the load really travels
     assert np.max(np.abs(tip - closed)) < 1e-4 * np.max(np.abs(closed))
+    # the bending moment along the beam, kinked under the block: M(x) = -F (a - x) before it, 0 after
+    x = res.stations("beam", 8)
+    M = res.bending_moment("beam", 8)
+    exact = -F * np.maximum(a[:, None] - x[None, :], 0.0)
+    assert np.max(np.abs(M - exact)) < 1e-4 * F * np.max(a)
+    # and the contact force: the load F, through the pin, normal to the beam (to the share of the
+    # damping forces, which the section forces leave out: docs/loads.md)
+    loads = res.loads()
+    k = loads.bearings.index(("B", "beam"))
+    assert np.max(np.abs(loads.elastic.force[:, k] - [0.0, -F])) < 2e-3 * F
+    assert np.max(np.abs(loads.rigid.force[:, k] - [0.0, -F])) < 1e-3 * F  # the rod's slow inertia
 
 
 def _slider_crank(rigid_rod: bool, stiff: float = 1.0) -> kf.Mechanism:

@@ -18,8 +18,8 @@ What sizes bearings and motors, from a periodic result, twice:
   :class:`~kedfem.motion.kinetostatics.KnownForces`).
 
 Conventions (docs/loads.md): a bearing is a pin and a body it holds (a
-member, or ``"frame"`` at ground and slider joints); its force is **the force
-the pin exerts on that body**, in global components [N]; moments and
+member, ``"frame"`` at ground and slider joints, or the member a block
+slides on); its force is **the force the pin exerts on that body**, in global components [N]; moments and
 torques are counter-clockwise positive [N m]; a drive torque is the torque
 the drive exerts on its member.
 """
@@ -289,6 +289,8 @@ def _bearings(mech: Mechanism, pairs) -> tuple[tuple[str, str], ...]:
         out.extend((j, m) for m in mech.members_at(j) if (m, j) in pairs)
         if jt.kind in ("ground", "slider"):
             out.append((j, FRAME))
+        elif jt.kind == "slot":  # the block's pin on the member it slides on
+            out.append((j, jt.on))
     return tuple(out)
 
 
@@ -304,6 +306,9 @@ def _history(response: str, bearings, forces: JointForces) -> LoadHistory:
             i = forces.pairs.index((m, j))
             F[:, k] = forces.force[:, i]
             M[:, k] = forces.moment[:, i]
+        elif j in forces.contact:  # a slot: the pin pushes the member it slides on
+            F[:, k] = -forces.contact[j]
+            M[:, k] = -forces.contact_moment.get(j, 0.0)
         # else: a redundant member, which takes no kinetostatic force
     return LoadHistory(response, F, M, forces.drive_torque, float(forces.residual))
 
@@ -437,13 +442,18 @@ def _accelerations(result, asm, gname: str) -> np.ndarray:
     return np.zeros_like(x)
 
 
-def _elastic_known(result, asm) -> KnownForces:
-    """The forces the elastic response fixes: flexible links' ends, drive torques, accelerations."""
+def _elastic_known(result, asm, skip=frozenset()) -> KnownForces:
+    """The forces the elastic response fixes: flexible links' ends, drive torques, accelerations.
+
+    The links in ``skip`` are left unknown (their balance rows stay).
+    """
     mech, mo, model = result.model.mech, result.motion, result.model
     force, moment, torque = {}, {}, {}
     moment_pairs, frame_moments = set(), set()
     rigid = [m for m, lk in mech.links.items() if lk.rigid] + list(mech.bodies)
     for lk in mech.flexible_links:
+        if lk.name in skip:
+            continue
         ends = _end_forces(result, lk)
         drive = mech.driven(lk.name)
         for k, j in enumerate(lk.joints):
@@ -526,6 +536,35 @@ def _elastic_loads(result, asm) -> tuple[np.ndarray, np.ndarray]:
             if getattr(it, "follows", None) == "total":
                 loads[:, mo.joint_names.index(it.joint)] += rigid_friction(mo, it, xd[:, k]) - rigid_friction(mo, it)
     return loads, moments
+
+
+def contact_forces(result) -> dict:
+    """Force (n, 2) [N] each slotted member exerts on its block's pin in the elastic response.
+
+    From the balance of the pins (the members at the block with their section
+    forces, the block's inertia and loads), with the slotted members' own end
+    forces left unknown, so that their section forces can use the result
+    (:meth:`~kedfem.analysis.results.PeriodicResult.bending_moment`).
+
+    Parameters
+    ----------
+    result : kedfem.analysis.results.PeriodicResult
+
+    Returns
+    -------
+    dict
+        Slot joint name -> (n, 2) global components.
+    """
+    mech = result.model.mech
+    slotted = frozenset(j.on for j in mech.joints.values() if j.kind == "slot")
+    if not slotted:
+        return {}
+    asm = Assembler(result.model, result.motion, result.scene.effects)
+    known = _elastic_known(result, asm, skip=slotted)
+    loads, moments = _elastic_loads(result, asm)
+    out = kinetostatics(mech, result.motion, inertia="inertia" in asm.effects, gravity=asm.weight,
+                        joint_loads=loads, member_moments=moments, known=known)
+    return out.contact
 
 
 def _elastic_forces(result, asm) -> JointForces:

@@ -565,8 +565,46 @@ class PeriodicResult:
                 inertia="inertia" in eff, coupling="coupling" in eff)
         out = recovery.section_forces(d, q, p, L=Le, EA=E * lk.section.A, EI=E * lk.section.I, xi=xi,
                                       N_h=N_h)
+        blocks = [j for j in self.model.mech.joints.values() if j.kind == "slot" and j.on == link]
+        if blocks:
+            out = self._with_blocks(lk, blocks, out, xi)
         self._cache[key] = out
         return out
+
+    def _with_blocks(self, lk, blocks, forces, xi):
+        """Add the moment and axial force of each block's contact load in the element under it.
+
+        The element's forces by equilibrium are the interpolation's plus, for each load in
+        it, those of the element clamped at both ends: for a transverse force ``P`` at ``a``
+        ``M = c0 + c1 x + P (x - a)+`` with ``int M = int M x = 0`` (no end slope or
+        deflection), for an axial one ``N = P_a b / L`` before ``a`` and ``-P_a a / L`` after.
+        """
+        from .loads import contact_forces
+        from ..fe.slots import block_abscissa
+        contact = self._cache.get("contact")
+        if contact is None:
+            contact = self._cache["contact"] = contact_forces(self)
+        M, N = (np.array(f) for f in forces)
+        L = lk.length / lk.elements
+        th = self.motion.angle(lk.name)
+        c, s = np.cos(th), np.sin(th)
+        x = xi * L
+        rows = np.arange(self.n)
+        for jt in blocks:
+            F = -contact[jt.name]  # the pin's force on the link
+            Px, Py = c * F[:, 0] + s * F[:, 1], -s * F[:, 0] + c * F[:, 1]
+            pos = block_abscissa(self.model, jt.name, self.motion)
+            e = np.clip(np.floor(pos / L).astype(int), 0, lk.elements - 1)
+            a = (pos - e * L)[:, None]
+            b = L - a
+            r1 = -Py[:, None] * b**2 / 2
+            r2 = -Py[:, None] * (L**3 / 3 - a * L**2 / 2 + a**3 / 6)
+            det = L**4 / 12
+            c0 = (r1 * L**3 / 3 - r2 * L**2 / 2) / det
+            c1 = (r2 * L - r1 * L**2 / 2) / det
+            M[rows, e] += c0 + c1 * x + Py[:, None] * np.maximum(x - a, 0.0)
+            N[rows, e] += Px[:, None] * np.where(x > a, -a / L, b / L)
+        return M, N
 
     def axial_force(self, link: str) -> np.ndarray:
         """Elastic axial force at the element midpoints (n, n_el) [N], tension positive.

@@ -28,7 +28,7 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["slot_point_form", "slot_rotation_form", "hermite"]
+__all__ = ["slot_point_form", "slot_rotation_form", "hermite", "block_abscissa"]
 
 _S = np.array([[0.0, -1.0], [1.0, 0.0]])
 
@@ -86,6 +86,11 @@ def _line(fe, joint, motion):
             xi[1] = motion.sd[:, k] * cos
             xi[2] = motion.sdd[:, k] * cos
     return (u, w * su, al * su - w**2 * u), xi
+
+
+def block_abscissa(fe, joint: str, motion) -> np.ndarray:
+    """Abscissa (nt,) [m] of a slot joint's block on its link, from the link's joint ``a``."""
+    return _line(fe, joint, motion)[1][0]
 
 
 def _rotate(v):
