@@ -138,3 +138,94 @@ def test_rigid_rod_on_a_slider_is_the_limit_of_a_stiff_flexible_one():
         errs.append(abs(flex - rigid) / rigid)
     # closer as the rod stiffens; the two models differ by 3e-4 in the limit (noted in the issue)
     assert errs[1] < 1e-3 and errs[1] < 0.3 * errs[0]
+
+
+def _bracket(split: bool) -> kf.Mechanism:
+    """A cantilever lever with a bracket welded at X (node 3 of 6); a load at the bracket's end Q."""
+    m = kf.Mechanism("bracket")
+    m.ground("O", at=(0.0, 0.0), clamped=True)
+    m.joint("T", at=(0.6, 0.0))
+    m.joint("Q", at=(0.3, 0.2))
+    sec = kf.Section.rectangle(0.02, 0.01)
+    if split:
+        m.joint("X", at=(0.3, 0.0), welded=True)
+        m.link("lever1", "O", "X", material=STEEL, section=sec, elements=3)
+        m.link("lever2", "X", "T", material=STEEL, section=sec, elements=3)
+    else:
+        m.slider("X", at=(0.3, 0.0), on="lever", slide="locked", rotation="locked")
+        m.link("lever", "O", "T", material=STEEL, section=sec, elements=6)
+    m.link("bracket", "X", "Q", material=STEEL, section=sec, elements=2)
+    m.load("P", "Q", force=(40.0, -25.0))
+    return m
+
+
+def test_block_locked_in_slide_and_rotation_is_a_weld():
+    """A locked piston at a node: the bracket's rotation is the lever's slope there."""
+    a = kf.static_response(_bracket(False), effects=("loads",))
+    b = kf.static_response(_bracket(True), effects=("loads",))
+    for joint in ("X", "Q", "T"):
+        ua, ub = a.joint_displacement(joint), b.joint_displacement(joint)
+        assert np.max(np.abs(ua - ub)) < 1e-10 * np.max(np.abs(b.joint_displacement("Q")))
+    ma, mb = a.bending_moment("bracket"), b.bending_moment("bracket")
+    assert np.max(np.abs(ma - mb)) < 1e-9 * np.max(np.abs(mb))
+
+
+def test_whitworth_preset_meets_its_tolerances():
+    """The catalogue's Whitworth at its defaults: time error within rtol, mesh error within 0.5 %
+    (the actual errors against rtol 1e-7 and a 32-element lever: benchmarks/sliding_pairs.py)."""
+    from kedfem import catalogue
+    res = kf.solve(catalogue.info("whitworth").scene())
+    assert res.error.met and res.error.peak <= res.scene.rtol
+    mesh = kf.mesh_error(res)
+    lever = mesh.link("lever")
+    assert lever.rate == 2.0 and lever.elements == 16 and lever.comparison_elements == 8
+    assert mesh.peak < 5e-3
+    assert "2 on lever" in mesh.describe()
+
+
+def _scotch_yoke(r=0.05, rpm=600.0, yoke_mass=1.0):
+    """A crank's pin block slides in the vertical slot of a rigid yoke on a crosshead guide."""
+    m = kf.Mechanism("scotch-yoke")
+    m.ground("O2", at=(0.0, 0.0))
+    m.slider("A", at=(r, 0.0), on="yoke", axis=(0.0, 1.0))       # the pin's block in the yoke's slot
+    m.slider("Y", at=(r + 0.2, 0.0), axis=(1.0, 0.0), rotation="locked")  # the yoke's crosshead
+    m.link("crank", "O2", "A", material=STEEL, section=kf.Section.rectangle(0.03, 0.03), elements=2)
+    m.body("yoke", ("Y",), mass=yoke_mass, J=0.01, cm=(r + 0.2, 0.0))
+    m.drive("crank", speed=rpm * math.pi / 30)
+    return m
+
+
+def test_scotch_yoke_on_a_crosshead():
+    r, w, my = 0.05, 600.0 * math.pi / 30, 1.0
+    m = _scotch_yoke(r, 600.0, my)
+    mo = kf.kinematics(m, 72)
+    th = mo.crank_angle
+    assert np.max(np.abs(mo.position("Y")[:, 0] - (r * np.cos(th) + 0.2))) < 1e-14
+    assert np.max(np.abs(mo.acceleration("Y")[:, 0] + r * w**2 * np.cos(th))) < 1e-10 * r * w**2
+    assert np.max(np.abs(mo.angle("yoke"))) < 1e-15
+    res = kf.solve(kf.Scene(m, effects=("inertia", "coupling"), damping=kf.ModalDamping(0.02), rtol=1e-5))
+    assert not any(lb.startswith("yoke.phi") for lb in res.model.dof_labels)   # the crosshead holds it
+    th = res.crank_angle
+    EI = STEEL.E * kf.Section.rectangle(0.03, 0.03).I
+    # quasi-static (the crank's first mode ~2.9 kHz, the load's 20 Hz): the yoke's inertia force
+    # m r w^2 cos(th) along x at the crank's tip, its component across the crank bends it
+    closed = -my * r * w**2 * np.cos(th) * np.sin(th) * r**3 / (3 * EI)
+    tip = res.deflection("crank", 1.0)
+    assert np.max(np.abs(tip - closed)) < 2e-3 * np.max(np.abs(closed))
+    loads = res.loads()
+    k = loads.bearings.index(("A", "yoke"))
+    assert np.max(np.abs(loads.rigid.force[:, k, 0] - (-my * r * w**2 * np.cos(th)))) < 1e-9 * my * r * w**2
+
+
+def test_stroke_with_a_dead_centre_at_the_reference():
+    """The yoke starts at a dead centre (crank angle 0): two dead centres, not three."""
+    st = kf.stroke(_scotch_yoke(), "Y")
+    assert st.length == pytest.approx(0.10, rel=1e-12) and st.time_ratio == pytest.approx(1.0, rel=1e-10)
+    assert np.allclose(np.sort(st.crank_angles), [0.0, math.pi], atol=1e-9)
+
+
+def test_a_block_in_a_slot_takes_no_rotary_inertia_of_its_own():
+    m = _scotch_yoke()
+    with pytest.raises(kf.InputError, match="turns with the member 'yoke'"):
+        m.point_mass("A", 0.1, J=1e-4)
+    assert repr(kf.kinematics(m, 12)).startswith("Motion('scotch-yoke': 12 instants")

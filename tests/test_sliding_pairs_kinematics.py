@@ -172,5 +172,5 @@ def test_input_errors_name_the_problem():
         kf.FEModel(m)
     with pytest.raises(kf.InputError, match="rotation must be 'free' or 'locked'"):
         kf.Mechanism("x").slider("A", at=(0, 0), on="lever", rotation="fixed")
-    with pytest.raises(kf.InputError, match="apply to a slider on a member"):
+    with pytest.raises(kf.InputError, match="applies to a slider on a member"):
         kf.Mechanism("x").slider("A", at=(0, 0), slide="locked")

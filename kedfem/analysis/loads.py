@@ -385,7 +385,8 @@ def _slope_weights() -> tuple[np.ndarray, np.ndarray]:
 def _holds_moment(mech: Mechanism, link, k: int) -> bool:
     """The end ``k`` (0: ``a``, 1: ``b``) of a flexible link is elastically clamped to something."""
     joint = link.joints[k]
-    return link.ends[k] == "clamp" or mech.joints[joint].welds(link.name)
+    jt = mech.joints[joint]
+    return link.ends[k] == "clamp" or jt.welds(link.name) or (jt.kind == "slider" and jt.rotation == "locked")
 
 
 def _end_forces(result, link) -> dict:
@@ -468,7 +469,7 @@ def _elastic_known(result, asm, skip=frozenset()) -> KnownForces:
             moment[(lk.name, j)] = M
             if welded:
                 continue
-            if mech.joints[j].kind == "ground":
+            if mech.joints[j].kind in ("ground", "slider"):  # a clamped root, or a crosshead
                 frame_moments.add(j)
             else:  # tied to the rotation of the rigid member pivoting here (kedfem.fe.dofs)
                 moment_pairs.update((m, j) for m in [m for m in mech.members_at(j) if m in rigid][:1])

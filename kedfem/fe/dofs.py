@@ -189,8 +189,11 @@ class DofNumbering:
             j = sliders[0]
             ref_pt = self._slider_point(j)
             self._rigid_joint_points[j] = ref_pt
-            q = self._new_q(f"{name}.phi")
-            phi = self._add_rot(RotDof("free", f"{name}.phi", (q,), members[0]))
+            if mech.joints[j].kind == "slider" and mech.joints[j].rotation == "locked":
+                phi = -1  # a crosshead: the group does not turn
+            else:
+                q = self._new_q(f"{name}.phi")
+                phi = self._add_rot(RotDof("free", f"{name}.phi", (q,), members[0]))
         elif len(grounded) >= 2:
             ref_pt = self._add_point(PointDof("fixed", f"{name}.ref"))
             phi = -1
@@ -342,6 +345,8 @@ class DofNumbering:
             return self._add_rot(RotDof("fixed", label, (), lk.name))
         if jt.kind == "slot" and jt.rotation == "locked" and jt.on != lk.name:
             return self._add_rot(RotDof("slot", label, (), lk.name, slot=joint))
+        if jt.kind == "slider" and jt.rotation == "locked":  # a crosshead
+            return self._add_rot(RotDof("fixed", label, (), lk.name, None, offset=True))
         clamped = lk.ends[k] == "clamp" or jt.welds(lk.name)
         if not clamped:
             q = self._new_q(label)

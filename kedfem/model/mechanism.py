@@ -344,7 +344,8 @@ class Mechanism:
             ``"free"``: a pin in the slot, the members at the joint rotate
             freely. ``"locked"``: a piston in its cylinder, the members at the
             joint turn with ``on`` (rigidly, and elastically with the slope of
-            a flexible ``on`` under the block).
+            a flexible ``on`` under the block); on the frame, a crosshead: the
+            members at the joint do not turn (a Scotch yoke's frame).
         slide : {"free", "locked"}
             ``"locked"`` keeps the block at its abscissa: a pin on the member
             at any point of it (no need to split the link there).
@@ -354,8 +355,8 @@ class Mechanism:
             raise InputError(f"{owner}: rotation must be 'free' or 'locked', got {rotation!r}")
         if slide not in ("free", "locked"):
             raise InputError(f"{owner}: slide must be 'free' or 'locked', got {slide!r}")
-        if on is None and (rotation != "free" or slide != "free"):
-            raise InputError(f"{owner}: rotation= and slide= apply to a slider on a member (on=); "
+        if on is None and slide != "free":
+            raise InputError(f"{owner}: slide='locked' applies to a slider on a member (on=); "
                              "on the frame, a locked slide is a ground joint")
         if on is not None and (not isinstance(on, str) or not on):
             raise InputError(f"{owner}: on must be the name of a link or body, got {on!r}")
@@ -688,7 +689,10 @@ class Mechanism:
     def point_mass(self, joint: str, mass: float, J: float = 0.0) -> PointMass:
         """Add a lumped mass [kg] (and rotary inertia ``J`` [kg m^2]) at a joint."""
         owner = f"point mass at '{joint}'"
-        self._check_joint(owner, joint)
+        jt = self._check_joint(owner, joint)
+        if J and jt.kind == "slot" and jt.rotation == "free":
+            raise InputError(f"{owner}: a block in a slot turns with the member '{jt.on}', not with the "
+                             "members pinned to it; give the block's rotary inertia to that member (J=0 here)")
         pm = PointMass(joint, _number(owner, "mass", mass, nonneg=True),
                        _number(owner, "J", J, nonneg=True))
         self.point_masses.append(pm)
@@ -959,8 +963,10 @@ class Mechanism:
             if not lk.rigid:
                 if abs(off) > 1e-9 * lk.length or abs(ax[0] * e1[1] - ax[1] * e1[0]) > 1e-9:
                     raise InputError(f"{owner}: on flexible link '{lk.name}' the block's line must be the "
-                                     f"link's axis (the block is {abs(off):.3g} m off it, axis {tuple(ax)}); "
-                                     "make the link rigid for an offset or oblique slot")
+                                     f"link's axis: the block at {j.at} is {abs(off):.3g} m off the line "
+                                     f"{self.joints[lk.a].at} -> {self.joints[lk.b].at}, its axis "
+                                     f"({ax[0]:.6g}, {ax[1]:.6g}); check at= and axis=, or make the link "
+                                     "rigid for an offset or oblique slot")
                 if lk.elements and self.links[lk.name].timoshenko:
                     raise InputError(f"{owner}: a block on Timoshenko link '{lk.name}' is not supported "
                                      "(the deflection under the block uses Euler-Bernoulli shape functions)")

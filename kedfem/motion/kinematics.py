@@ -89,6 +89,11 @@ class Motion:
         """Number of time nodes."""
         return int(self.t.size)
 
+    def __repr__(self) -> str:
+        return (f"Motion({self.mechanism!r}: {self.n} instants over {self.period:.6g} s, joints "
+                f"{', '.join(self.joint_names)}; members {', '.join(self.member_names)}; sliders "
+                f"{', '.join(self.slider_names) or 'none'}; loop residual {self.residual:.2g} m)")
+
     def _j(self, joint: str) -> int:
         try:
             return self.joint_names.index(joint)
@@ -293,6 +298,10 @@ class _LoopModel:
                 for i in idx[1:]:
                     rows.append((i, idx[0], 0.0, f"welded joint '{j.name}'"))
         for j in mech.joints.values():
+            if j.kind == "slider" and j.rotation == "locked":  # a crosshead: no member turns
+                for m in mech.members_at(j.name):
+                    if m in self.mindex and mech.driven(m) is None:
+                        rows.append((self.mindex[m], -1, 0.0, f"locked slider '{j.name}'"))
             if j.kind == "slot" and j.rotation == "locked":
                 k = self.mindex[j.on]
                 for m in mech.members_at(j.name):
@@ -424,10 +433,14 @@ class _LoopModel:
             out = np.flatnonzero((xi < -tol) | (xi > lk.length + tol))
             if out.size:
                 i = int(out[0])
+                near = " or shorten the stroke" if xi[i] > 0 else (
+                    "; or, if the block passes close to the line's origin at joint "
+                    f"'{lk.a}' (the member's angle turns fast there), the motion jumped to another assembly "
+                    "branch near that toggle: move the pivot away from the block's path")
                 raise KinematicsError(
                     f"{self.mech.name}: the block of slider '{name}' runs off link '{lk.name}' at crank "
                     f"angle {math.degrees(float(crank[i])):.3f} deg: its abscissa {xi[i]:.6g} m is outside "
-                    f"the link (0 to {lk.length:.6g} m); lengthen '{lk.name}' or shorten the stroke")
+                    f"the link (0 to {lk.length:.6g} m); lengthen '{lk.name}'{near}")
 
     def unknown_columns(self):
         nm = len(self.member_names)

@@ -206,6 +206,9 @@ class _Layout:
             elif j.kind == "slider":
                 self.s_col[j.name] = col
                 col += 1
+                if j.rotation == "locked":  # a crosshead: the guide takes a moment
+                    self.gm_col[j.name] = col
+                    col += 1
             elif j.kind == "slot":
                 self.c_col[j.name] = col
                 col += 1 if j.slide == "free" else 2
@@ -228,7 +231,7 @@ class _Layout:
 def _locked(mech: Mechanism, member: str, joint: str) -> bool:
     """``member`` is locked in rotation to the member a slot joint slides on."""
     jt = mech.joints[joint]
-    return jt.kind == "slot" and jt.rotation == "locked" and member != jt.on
+    return (jt.kind in ("slot", "slider") and jt.rotation == "locked" and member != jt.on)
 
 
 def _contact_directions(mech, motion, joint):

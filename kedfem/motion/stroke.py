@@ -31,7 +31,7 @@ class Stroke:
     times : ndarray, shape (2,)
         Instants of the rear (smallest position) and front dead centre [s].
     crank_angles : ndarray, shape (2,)
-        Crank angles at those instants [rad].
+        Crank angles at those instants [rad], in ``[0, 2 pi)``.
     forward_time, return_time : float
         Time from rear to front dead centre (motion along +axis), and back [s].
     """
@@ -89,7 +89,10 @@ def stroke(mechanism: Mechanism, joint: str, axis=None) -> Stroke:
     t = np.arange(SCAN) * (T / SCAN)
     mo = cyc.at(t)
     v = mo.velocity(joint) @ ax
-    flips = np.flatnonzero(np.sign(v) != np.sign(np.roll(v, -1)))
+    sign = np.sign(np.where(np.abs(v) <= 1e-12 * np.max(np.abs(v)), 0.0, v))
+    for k in np.flatnonzero(sign == 0)[::-1]:  # a dead centre on a sample: the sign of the next one
+        sign[k] = sign[(k + 1) % sign.size] if sign[(k + 1) % sign.size] else 1.0
+    flips = np.flatnonzero(sign != np.roll(sign, -1))
     if flips.size != 2:
         raise KinematicsError(f"stroke: joint '{joint}' of {mechanism.name} reverses {flips.size} times per "
                               "cycle along the axis; a stroke has two dead centres")
@@ -105,12 +108,13 @@ def stroke(mechanism: Mechanism, joint: str, axis=None) -> Stroke:
             dead.append(a if abs(fa) < abs(fb) else b)
         else:
             dead.append(brentq(speed, a, b, xtol=1e-15 * T, rtol=4 * np.finfo(float).eps))
-    dead = np.array(dead)
+    dead = np.mod(np.array(dead), T)
+    dead = np.where(T - dead <= 1e-12 * T, 0.0, dead)  # the end of the cycle is its start
     pos = np.array([cyc.at(np.array([d])).position(joint)[0] @ ax for d in dead])
     order = np.argsort(pos)
     dead, pos = dead[order], pos[order]
     fwd = (dead[1] - dead[0]) % T
-    crank = cyc.model.drive_angles(dead)[:, 0]
+    crank = np.mod(cyc.model.drive_angles(dead)[:, 0], 2 * np.pi)
     return Stroke(joint, ax, float(pos[1] - pos[0]), dead, crank, float(fwd), float(T - fwd))
 
 
