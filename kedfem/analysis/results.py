@@ -531,7 +531,11 @@ class PeriodicResult:
 
     def _forces(self, link: str, per_element: int):
         """Bending moment and axial force (n, n_el, per_element + 1) by element equilibrium."""
-        key = ("forces", link, per_element)
+        return self._forces_at(link, np.linspace(0.0, 1.0, per_element + 1))
+
+    def _forces_at(self, link: str, xi: np.ndarray):
+        """Bending moment and axial force (n, n_el, nx) at fractions ``xi`` (nx,) of every element."""
+        key = ("forces", link, tuple(np.asarray(xi, float).tolist()))
         if key in self._cache:
             return self._cache[key]
         lk = self._link(link)
@@ -539,7 +543,7 @@ class PeriodicResult:
         ne = lk.elements
         Le = lk.length / ne
         E = lk.material.E
-        xi = np.linspace(0.0, 1.0, per_element + 1)
+        xi = np.asarray(xi, float)
         N_h = self._axial_fe(link)
         q = p = None
         sl = self.model.link_elements(link)
@@ -780,7 +784,28 @@ class PeriodicResult:
             v, dj = _vertex(vals, j)
             # an evaluation at the instant's vertex (the vertices in time and along the link
             # added together over-shoot a peak on a ridge that is not along the axes)
-            out[si] = (v, best[si][1], (j + dj) / sub)
+            station = (j + dj) / sub
+            h = lk.length / (lk.elements * PEAK_STATIONS * sub)
+            for x, s_ in one._block_stress(lk, r):
+                # the stress is kinked under a block: no parabola there, the apex itself
+                if abs(x - j * h) <= 2.0 * h:
+                    v, station = max((float(vals[j]), j / sub), (s_, x / (h * sub)))
+            out[si] = (v, best[si][1], station)
+        return out
+
+    def _block_stress(self, lk, r: int) -> list[tuple[float, float]]:
+        """(abscissa [m], stress [Pa]) under every block sliding on link ``lk`` at instant ``r``."""
+        from ..fe.slots import block_abscissa
+        out = []
+        sec = lk.section
+        for jt in self.model.mech.joints.values():
+            if jt.kind != "slot" or jt.on != lk.name:
+                continue
+            x = float(block_abscissa(self.model, jt.name, self.motion)[r])
+            Le = lk.length / lk.elements
+            e = min(max(int(np.floor(x / Le)), 0), lk.elements - 1)
+            M, N = self._forces_at(lk.name, np.array([x / Le - e]))
+            out.append((x, float(abs(N[r, e, 0]) / sec.A + abs(M[r, e, 0]) * sec.c / sec.I)))
         return out
 
     def _angle_of(self, t: float) -> float:
