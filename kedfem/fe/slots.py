@@ -27,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
+from ..motion.kinematics import slot_direction
 
 __all__ = ["slot_point_form", "slot_rotation_form", "hermite", "block_abscissa"]
 
@@ -66,13 +67,7 @@ def _line(fe, joint, motion):
     """Direction ``u`` of the block's line with its time derivatives, each (nt, 2), and the abscissa."""
     mech = fe.mech
     jt = mech.joints[joint]
-    i = motion.member_names.index(jt.on)
-    th = motion.theta[:, i] - motion.theta_ref[i]
-    w, al = motion.omega[:, i, None], motion.alpha[:, i, None]
     _origin, d, ax = mech.slot_line(joint)
-    c, s_ = np.cos(th), np.sin(th)
-    u = np.stack([c * ax[0] - s_ * ax[1], s_ * ax[0] + c * ax[1]], axis=-1)
-    su = u @ _S.T
     nt = motion.n
     xi = np.zeros((3, nt))
     if jt.on in mech.links:
@@ -85,7 +80,7 @@ def _line(fe, joint, motion):
             xi[0] = xi[0] + motion.s[:, k] * cos
             xi[1] = motion.sd[:, k] * cos
             xi[2] = motion.sdd[:, k] * cos
-    return (u, w * su, al * su - w**2 * u), xi
+    return slot_direction(mech, motion, joint), xi
 
 
 def block_abscissa(fe, joint: str, motion) -> np.ndarray:

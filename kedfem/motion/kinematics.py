@@ -25,7 +25,7 @@ import numpy as np
 from ..errors import InputError, KinematicsError, MobilityError
 from ..model.mechanism import GROUND, Mechanism
 
-__all__ = ["Motion", "Cycle", "kinematics", "kinematics_at", "static_motion"]
+__all__ = ["Motion", "Cycle", "kinematics", "kinematics_at", "static_motion", "slot_direction"]
 
 log = logging.getLogger(__name__)
 
@@ -806,6 +806,26 @@ def _with_passive(model, r, v, a, theta, omega, alpha):
     cat = lambda x, y: np.concatenate([x, np.stack(y, axis=1)], axis=1)  # noqa: E731
     return (model.member_names + model.passive, cat(theta, th), cat(omega, om), cat(alpha, al),
             np.concatenate([model.theta0, ref]))
+
+
+def slot_direction(mech: Mechanism, motion: Motion, joint: str):
+    """Direction of a slot joint's line over the motion, turning with its member.
+
+    Returns
+    -------
+    u, u1, u2 : ndarray, shape (n, 2)
+        The unit direction and its first and second time derivatives
+        (``u' = w S u``, ``u'' = a S u - w^2 u``, ``w``, ``a`` the member's rates).
+    """
+    jt = mech.joints[joint]
+    i = motion.member_names.index(jt.on)
+    th = motion.theta[:, i] - motion.theta_ref[i]
+    w, al = motion.omega[:, i, None], motion.alpha[:, i, None]
+    _origin, _d, ax = mech.slot_line(joint)
+    c, s_ = np.cos(th), np.sin(th)
+    u = np.stack([c * ax[0] - s_ * ax[1], s_ * ax[0] + c * ax[1]], axis=-1)
+    su = u @ _S.T
+    return u, w * su, al * su - w**2 * u
 
 
 def kinematics(mechanism: Mechanism, steps: int = 360, *, times=None) -> Motion:

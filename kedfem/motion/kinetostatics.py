@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import KedError
-from .kinematics import Motion
+from .kinematics import Motion, slot_direction
 from ..model.mechanism import Mechanism
 
 __all__ = ["JointForces", "KnownForces", "kinetostatics", "link_axial_force"]
@@ -236,14 +236,9 @@ def _locked(mech: Mechanism, member: str, joint: str) -> bool:
 
 def _contact_directions(mech, motion, joint):
     """Unit directions (n, k, 2) of the contact force components of a slot: its normal (and its line)."""
-    jt = mech.joints[joint]
-    i = motion.member_names.index(jt.on)
-    th = motion.theta[:, i] - motion.theta_ref[i]
-    _o, _d, ax = mech.slot_line(joint)
-    c, s_ = np.cos(th), np.sin(th)
-    u = np.stack([c * ax[0] - s_ * ax[1], s_ * ax[0] + c * ax[1]], axis=-1)
+    u = slot_direction(mech, motion, joint)[0]
     nrm = np.stack([-u[:, 1], u[:, 0]], axis=-1)
-    return nrm[:, None] if jt.slide == "free" else np.stack([nrm, u], axis=1)
+    return nrm[:, None] if mech.joints[joint].slide == "free" else np.stack([nrm, u], axis=1)
 
 
 def _equations(mech, motion, lay: _Layout, inertia, gravity, joint_loads, member_moments,
