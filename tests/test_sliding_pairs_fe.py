@@ -229,3 +229,36 @@ def test_a_block_in_a_slot_takes_no_rotary_inertia_of_its_own():
     with pytest.raises(kf.InputError, match="turns with the member 'yoke'"):
         m.point_mass("A", 0.1, J=1e-4)
     assert repr(kf.kinematics(m, 12)).startswith("Motion('scotch-yoke': 12 instants")
+
+
+def test_friction_in_a_sliding_pair():
+    """Friction of the block on the cantilever: the beam is pulled along at the block (tension
+    F before it, none after: its tip moves F a / EA), the rod pushes the block against it."""
+    Ff, L = 20.0, 0.5
+    m = _cantilever_with_block(0.0, speed=2 * math.pi * 0.1)
+    m.friction("slide", "B", force=Ff, smoothing=2e-3)
+    EA = STEEL.E * 0.02 * 0.01
+    res = kf.solve(kf.Scene(m, effects=("inertia", "coupling", "loads"), damping=kf.ModalDamping(0.05),
+                            rtol=1e-3))
+    mo = res.motion
+    a = mo.position("B")[:, 0]
+    sd = mo.sd[:, mo.slider_names.index("B")]
+    sign = np.tanh(sd / 2e-3)
+    moving = np.abs(sd) > 1e-2  # away from the dead centres, where the friction reverses
+    tip = res.joint_displacement("T")[:, 0]
+    closed = Ff * sign * a / EA  # the block moving +x drags the beam +x: tension over [0, a]
+    assert np.max(np.abs(tip - closed)[moving]) < 1e-3 * np.max(np.abs(closed))
+    # the axial force at the element midpoints: F before the block, 0 after
+    x = res.stations("beam")[:-1] + 0.025
+    N = res.axial_force("beam")
+    exact = Ff * sign[:, None] * (x[None, :] < a[:, None])
+    far = np.abs(x[None, :] - a[:, None]) > 0.025  # elements without the block
+    assert np.max(np.abs(N - exact)[moving[:, None] & far]) < 1e-3 * Ff
+    # the machine loads: the block's bearing on the beam carries the friction along the beam
+    loads = res.loads()
+    k = loads.bearings.index(("B", "beam"))
+    assert np.max(np.abs(loads.rigid.force[:, k, 0] - Ff * sign)) < 1e-9 * Ff
+    with pytest.raises(kf.InputError, match="leave axis= out"):
+        m.friction("again", "B", force=1.0, axis=(1.0, 0.0))
+    with pytest.raises(kf.InputError, match="give the axis="):
+        m.friction("again", "P", force=1.0)

@@ -564,7 +564,8 @@ def contact_forces(result) -> dict:
     known = _elastic_known(result, asm, skip=slotted)
     loads, moments = _elastic_loads(result, asm)
     out = kinetostatics(mech, result.motion, inertia="inertia" in asm.effects, gravity=asm.weight,
-                        joint_loads=loads, member_moments=moments, known=known)
+                        joint_loads=loads, member_moments=moments, known=known,
+                        pair_loads=asm.pair_loads(result.motion))
     return out.contact
 
 
@@ -573,7 +574,8 @@ def _elastic_forces(result, asm) -> JointForces:
     known = _elastic_known(result, asm)
     loads, moments = _elastic_loads(result, asm)
     out = kinetostatics(result.model.mech, result.motion, inertia="inertia" in asm.effects,
-                        gravity=asm.weight, joint_loads=loads, member_moments=moments, known=known)
+                        gravity=asm.weight, joint_loads=loads, member_moments=moments, known=known,
+                        pair_loads=asm.pair_loads(result.motion))
     log.info("machine loads of %s: elastic pin balance %.1e of the largest force", result.model.mech.name,
              out.residual)
     return out

@@ -456,11 +456,15 @@ class _Run:
         mo = self._band_motion(samples)
         out = 0.0
         for fr in mech.frictions.values():
-            ax = np.asarray(fr.axis, dtype=float)
-            ax = ax / np.linalg.norm(ax)
-            j = mo.joint_names.index(fr.joint)
-            v = mo.v[:, j] @ ax - fr.reference_speed
-            a = np.abs(mo.a[:, j] @ ax)
+            if fr.axis is None:  # a sliding pair: the block's speed on its member
+                k = mo.slider_names.index(fr.joint)
+                v, a = mo.sd[:, k] - fr.reference_speed, np.abs(mo.sdd[:, k])
+            else:
+                ax = np.asarray(fr.axis, dtype=float)
+                ax = ax / np.linalg.norm(ax)
+                j = mo.joint_names.index(fr.joint)
+                v = mo.v[:, j] @ ax - fr.reference_speed
+                a = np.abs(mo.a[:, j] @ ax)
             cross = np.flatnonzero(np.sign(v) != np.sign(np.roll(v, -1)))
             if cross.size:
                 a_c = np.maximum(a[cross], np.roll(a, -1)[cross])

@@ -140,8 +140,17 @@ class Assembler:
                 for e in hooks:
                     e.joint_loads(self, mo, loads, moments)
             self._forces = kinetostatics(self.mech, mo, inertia=True, gravity=self.weight,
-                                         joint_loads=loads, member_moments=moments)
+                                         joint_loads=loads, member_moments=moments,
+                                         pair_loads=self.pair_loads(mo))
         return self._forces
+
+    def pair_loads(self, mo: Motion) -> dict:
+        """The chosen effects' known forces inside sliding pairs (:meth:`Effect.pair_loads`)."""
+        out: dict = {}
+        for e in self.chosen:
+            for j, F in e.pair_loads(self, mo).items():
+                out[j] = out[j] + F if j in out else F
+        return out
 
     def _beam_kinematics(self, mo: Motion) -> BeamKinematics | None:
         """Kinematics of the beam elements' frames at the instants of ``mo`` (None without beams)."""

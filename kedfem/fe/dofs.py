@@ -287,9 +287,14 @@ class DofNumbering:
         return self._add_point(PointDof("slot", jn, cols, loc=("joint", jn)))
 
     def _build_slots(self):
-        """The body point of a rigid member under each block sliding on it."""
+        """The body point of a rigid member under each block sliding on it; the member's point
+        under each block (``slot_contact``: where the pair's friction reaction acts)."""
         self.slot_support = {}
+        self.slot_contact = {}
         for jn, j in self.mech.joints.items():
+            if j.kind == "slot" and j.on not in self.member_rot:
+                self.slot_contact[jn] = self._add_point(PointDof("contact", f"{j.on}@{jn}", (),
+                                                                 loc=("joint", jn)))
             if j.kind != "slot" or j.on not in self.member_rot:
                 continue
             grp = next(g for g in self.rigid_groups if j.on in g["members"])
@@ -299,6 +304,7 @@ class DofNumbering:
             else:
                 pid = self._add_point(PointDof("body", f"{j.on}@{jn}", parent=ref, phi=phi, loc=("joint", jn)))
             self.slot_support[jn] = pid
+            self.slot_contact[jn] = pid
 
     def _build_joint_points(self):
         mech = self.mech
@@ -503,8 +509,11 @@ class DofNumbering:
                                   {"items": titems})
         loads = [(self.joint_point[ld.joint],) for ld in mech.loads.values()]
         loads += [(self.joint_point[f.joint],) for f in mech.frictions.values()]
+        pair = [f for f in mech.frictions.values() if f.axis is None]  # their reactions on the member
+        loads += [(self.slot_contact[f.joint],) for f in pair]
         groups["load"] = Group("load", ("P",), np.asarray(loads, int).reshape(-1, 1),
-                               {"items": list(mech.loads.values()) + list(mech.frictions.values())})
+                               {"items": list(mech.loads.values()) + list(mech.frictions.values())
+                                + [("reaction", f) for f in pair]})
         self.groups = {k: g for k, g in groups.items()}
 
     # ------------------------------------------------------------ evaluation

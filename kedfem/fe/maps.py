@@ -77,7 +77,7 @@ class ConstraintMaps:
                 out = pd.cols
             elif pd.kind == "body":
                 out = self.entity_cols("P", pd.parent) + (self.rots[pd.phi].cols if pd.phi >= 0 else ())
-            elif pd.kind == "slot":
+            elif pd.kind in ("slot", "contact"):
                 out = self._slot_cols(pd.cols, pd.loc[1])
             else:
                 out = self._block_cols(pd.block)
@@ -116,7 +116,7 @@ class ConstraintMaps:
                 return True, self._block_offset(pd.block)
             if pd.kind == "corot":
                 return True, False
-            if pd.kind == "slot":
+            if pd.kind in ("slot", "contact"):
                 return True, self._slot_offset(pd.loc[1])
             return False, False
         rd = self.rots[eid]
@@ -200,7 +200,7 @@ class ConstraintMaps:
                 out = (pd.cols, np.asarray(pd.axis, float).reshape(1, 2, 1), None, None) + none3
             elif pd.kind == "cb":
                 out = block(pd.block)[pd.node][0]
-            elif pd.kind == "slot":
+            elif pd.kind in ("slot", "contact"):
                 out = slot_point_form(self, pid, motion, pform, rform)
             elif pd.kind == "corot":  # components in the link's rotating frame: x = R(theta) q
                 i = motion.member_names.index(pd.loc[1])

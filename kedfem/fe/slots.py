@@ -201,7 +201,8 @@ def _beam_terms(fe, joint, motion, pform, rform, acc: _Sum, u, xi, what: str):
 
 
 def slot_point_form(fe, pid: int, motion, pform, rform):
-    """Affine form ``(cols, C, C1, C2, p, p1, p2)`` of a slot joint's translation (see module docstring).
+    """Affine form ``(cols, C, C1, C2, p, p1, p2)`` of a slot joint's translation (see module docstring),
+    or (kind ``"contact"``) of the member's point under the block.
 
     ``C`` (nt, 2, k) and its first and second time derivatives; ``p`` (nt, 2) or None.
     """
@@ -211,17 +212,17 @@ def slot_point_form(fe, pid: int, motion, pform, rform):
     u, xi = _line(fe, joint, motion)
     n = _rotate(u)
     acc = _Sum(motion.n, 2)
-    if jt.slide == "free":
+    full = pd.kind == "contact" or jt.slide == "locked"  # the member's own point under the block
+    if not full:
         acc.add_own(u, pd.cols)
     support = fe.slot_support.get(joint)
     if support is not None:  # a rigid member: its body point under the block
         form = pform(support)
-        if jt.slide == "free":
-            acc.add(n, (np.ones(motion.n), np.zeros(motion.n), np.zeros(motion.n)), form, proj=n)
-        else:
+        if full:
             return form
+        acc.add(n, (np.ones(motion.n), np.zeros(motion.n), np.zeros(motion.n)), form, proj=n)
     else:
-        _beam_terms(fe, joint, motion, pform, rform, acc, u, xi, "normal" if jt.slide == "free" else "full")
+        _beam_terms(fe, joint, motion, pform, rform, acc, u, xi, "full" if full else "normal")
     return acc.form(fe.entity_cols("P", pid))
 
 

@@ -220,12 +220,15 @@ class Friction:
     ``F = -force * tanh((v . axis - reference_speed) / smoothing) * axis``.
     ``follows="rigid"`` uses the rigid-body velocity (state independent);
     ``"total"`` adds the elastic velocity (state dependent: iterated).
+    ``axis=None``: friction in a sliding pair (a slot joint): the force acts
+    between the block and the member it slides on, along the turning line,
+    and opposes the block's sliding speed on it.
     """
 
     name: str
     joint: str
     force: float
-    axis: tuple[float, float]
+    axis: tuple[float, float] | None
     reference_speed: float = 0.0
     smoothing: float = 1e-3
     follows: str = "rigid"
@@ -812,7 +815,7 @@ class Mechanism:
         self.loads[name] = ld
         return ld
 
-    def friction(self, name: str, joint: str, force: float, axis, *, reference_speed: float = 0.0,
+    def friction(self, name: str, joint: str, force: float, axis=None, *, reference_speed: float = 0.0,
                  smoothing: float = 1e-3, follows: str = "rigid") -> Friction:
         """Add a friction force opposing the joint's motion along ``axis``.
 
@@ -824,8 +827,12 @@ class Mechanism:
             Joint the force acts on.
         force : float
             Magnitude [N].
-        axis : (float, float)
+        axis : (float, float), optional
             Direction along which the velocity is measured and the force acts.
+            Leave it out at a slot joint (``slider(..., on=member)``): the
+            friction of the sliding pair, along the block's line, on the
+            block's sliding speed relative to the member; the member takes
+            the reaction at the block (``follows="rigid"`` only).
         reference_speed : float
             Speed [m/s] of the counter-body along ``axis`` (e.g. the strand's
             casting speed); the force follows the sign of the relative speed.
@@ -837,14 +844,27 @@ class Mechanism:
         owner = f"friction '{name}'"
         if name in self.loads or name in self.frictions:
             raise InputError(f"{self.name}: load name '{name}' is used twice")
-        self._check_joint(owner, joint)
-        ax = np.asarray(_vec2(owner, "axis", axis))
-        nrm = float(np.hypot(*ax))
-        if nrm == 0.0:
-            raise InputError(f"{owner}: axis must be a non-zero vector")
+        jt = self._check_joint(owner, joint)
         if follows not in ("rigid", "total"):
             raise InputError(f"{owner}: follows must be 'rigid' or 'total', got {follows!r}")
-        fr = Friction(name, joint, _number(owner, "force", force, nonneg=True), tuple((ax / nrm).tolist()),
+        slot = jt.kind == "slot"
+        if slot and axis is not None:
+            raise InputError(f"{owner}: at slot joint '{joint}' the friction acts along the block's line on "
+                             f"'{jt.on}'; leave axis= out")
+        if slot and (follows != "rigid" or jt.slide != "free"):
+            raise InputError(f"{owner}: friction in the sliding pair '{joint}' needs slide='free' and "
+                             "follows='rigid'")
+        if not slot and axis is None:
+            raise InputError(f"{owner}: give the axis= the friction acts along (it may be left out only "
+                             "at a slot joint)")
+        unit = None
+        if not slot:
+            ax = np.asarray(_vec2(owner, "axis", axis))
+            nrm = float(np.hypot(*ax))
+            if nrm == 0.0:
+                raise InputError(f"{owner}: axis must be a non-zero vector")
+            unit = tuple((ax / nrm).tolist())
+        fr = Friction(name, joint, _number(owner, "force", force, nonneg=True), unit,
                       _number(owner, "reference_speed", reference_speed),
                       _number(owner, "smoothing", smoothing, positive=True), follows)
         self.frictions[name] = fr

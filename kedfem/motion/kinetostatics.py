@@ -242,7 +242,7 @@ def _contact_directions(mech, motion, joint):
 
 
 def _equations(mech, motion, lay: _Layout, inertia, gravity, joint_loads, member_moments,
-               known: KnownForces | None):
+               known: KnownForces | None, pair_loads=None):
     """The batched equations ``A x = b``: A (n, n_eq, n_unk), b (n, n_eq)."""
     n = motion.n
     kf = known.force if known is not None else {}
@@ -320,6 +320,14 @@ def _equations(mech, motion, lay: _Layout, inertia, gravity, joint_loads, member
             nrm = np.array([-jt.axis[1], jt.axis[0]])
             A[:, rr, lay.s_col[jname]] = nrm[0]
             A[:, rr + 1, lay.s_col[jname]] = nrm[1]
+        if pair_loads and jname in pair_loads:  # a known force inside the pair, along the line
+            Fp = pair_loads[jname][:, None] * slot_direction(mech, motion, jname)[0]
+            rhs -= Fp
+            if jt.on in lay.members:
+                r1 = 3 * lay.members.index(jt.on)
+                arm = motion.r[:, jn] - member_centre(mech, motion, jt.on)[0]
+                b[:, r1:r1 + 2] += Fp
+                b[:, r1 + 2] += arm[:, 0] * Fp[:, 1] - arm[:, 1] * Fp[:, 0]
         if jname in lay.c_col:  # the slot's member pushes the pin, the pin the member (at the pin)
             dirs = _contact_directions(mech, motion, jname)
             c0 = lay.c_col[jname]
@@ -430,7 +438,7 @@ def _solve_least_squares(mech, motion, lay: _Layout, A, b):
 def kinetostatics(mech: Mechanism, motion: Motion, *, inertia: bool = True,
                   gravity: bool = False, joint_loads: np.ndarray | None = None,
                   member_moments: np.ndarray | None = None,
-                  known: KnownForces | None = None) -> JointForces:
+                  known: KnownForces | None = None, pair_loads: dict | None = None) -> JointForces:
     """Joint forces of the rigid mechanism in dynamic equilibrium.
 
     Parameters
@@ -455,6 +463,10 @@ def kinetostatics(mech: Mechanism, motion: Motion, *, inertia: bool = True,
         drive torques) and the elastic accelerations; the other forces then
         follow by least squares, and ``residual`` is the imbalance of the
         equations left over.
+    pair_loads : dict, optional
+        Slot joint -> (n,) known force [N] the member exerts on the block
+        along the block's line (a sliding pair's friction); the block exerts
+        the opposite on the member, at the block. ``contact`` includes it.
 
     Returns
     -------
@@ -468,7 +480,7 @@ def kinetostatics(mech: Mechanism, motion: Motion, *, inertia: bool = True,
     """
     n = motion.n
     lay = _Layout(mech, motion, known)
-    A, b = _equations(mech, motion, lay, inertia, gravity, joint_loads, member_moments, known)
+    A, b = _equations(mech, motion, lay, inertia, gravity, joint_loads, member_moments, known, pair_loads)
     if known is None:
         x, rel = _solve_square(mech, A, b, lay.n_eq, lay.n_unk)
     else:
@@ -502,6 +514,8 @@ def kinetostatics(mech: Mechanism, motion: Motion, *, inertia: bool = True,
     for j, c in lay.c_col.items():
         dirs = _contact_directions(mech, motion, j)
         contact[j] = np.einsum("nk,nkd->nd", x[:, c:c + dirs.shape[1]], dirs)
+        if pair_loads and j in pair_loads:
+            contact[j] = contact[j] + pair_loads[j][:, None] * slot_direction(mech, motion, j)[0]
     contact_moment = {j: x[:, c] for j, c in lay.cm_col.items()}
     return JointForces(tuple(pairs), force, moment, torque, frame, rel, frame_moment, contact,
                        contact_moment)
@@ -542,9 +556,9 @@ def link_axial_force(mech: Mechanism, motion: Motion, forces: JointForces, link:
     sq = (s1**2 + s1 * s2 + s2**2) / 3.0
     N = (rhoA * (aa[:, None] * sm - 0.5 * w2[:, None] * sq) - Fa[:, None]
          - rhoA * ge[:, None] * sm)
-    for j, F in forces.contact.items():  # a block pinned on the link pushes it along its axis
+    for j, F in forces.contact.items():  # a block on the link pushes it along its axis (locked, friction)
         jt = mech.joints[j]
-        if jt.on != link or jt.slide != "locked":
+        if jt.on != link:
             continue
         _o, d, _ax = mech.slot_line(j)
         e0 = (np.array(mech.joints[lk.b].at) - np.array(mech.joints[lk.a].at)) / lk.length

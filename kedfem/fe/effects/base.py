@@ -151,6 +151,15 @@ class Effect:
         forces (and so the links' axial forces of ``axial_stiffening``).
         """
 
+    def pair_loads(self, asm, motion: Motion) -> dict:
+        """Known forces inside sliding pairs on the rigid-body motion: slot joint -> (n,) [N].
+
+        The force the member exerts on the block along the block's line (the
+        block exerts the opposite on the member, at the block); it enters the
+        kinetostatics with the pair's unknown normal force.
+        """
+        return {}
+
     def element_terms(self, asm, chunk: Chunk) -> None:
         """Add element-coordinate terms to ``chunk.acc`` (by element group)."""
 

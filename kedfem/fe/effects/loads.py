@@ -14,26 +14,38 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...model.mechanism import Load
-from ...motion.kinematics import Motion
+from ...motion.kinematics import Motion, slot_direction
 from .base import Chunk, Effect, StateTerms
 
-__all__ = ["Loads", "rigid_friction", "friction_law"]
+__all__ = ["Loads", "rigid_friction", "friction_law", "pair_friction"]
 
 
 def friction_law(mo: Motion, f, dv=None) -> np.ndarray:
     """The friction force's regularised sign ``tanh(v_rel / smoothing)`` (nt,) [-], with ``v_rel``
     the relative speed along its axis of the joint's rigid-body velocity plus ``dv`` (nt, 2)
-    [m/s], the elastic part, if given."""
+    [m/s], the elastic part, if given; in a sliding pair (``axis`` None) the block's sliding
+    speed on its member."""
+    if f.axis is None:
+        vrel = mo.sd[:, mo.slider_names.index(f.joint)] - f.reference_speed
+        return np.tanh(vrel / f.smoothing)
     n = np.asarray(f.axis)
     v = mo.v[:, mo.joint_names.index(f.joint)]
     vrel = (v if dv is None else v + dv) @ n - f.reference_speed
     return np.tanh(vrel / f.smoothing)
 
 
-def rigid_friction(mo: Motion, f, dv=None) -> np.ndarray:
+def rigid_friction(mo: Motion, f, dv=None, mech=None) -> np.ndarray:
     """Friction force [N] (nt, 2) on the rigid-body velocity of its joint (tanh-regularised
-    sign), or on the total velocity with the elastic part ``dv`` (nt, 2) [m/s]."""
+    sign), or on the total velocity with the elastic part ``dv`` (nt, 2) [m/s]. In a sliding
+    pair (``axis`` None; ``mech`` needed) the force of the member on the block, along its line."""
+    if f.axis is None:
+        return pair_friction(mo, f)[:, None] * slot_direction(mech, mo, f.joint)[0]
     return -(f.force * friction_law(mo, f, dv))[:, None] * np.asarray(f.axis)
+
+
+def pair_friction(mo: Motion, f) -> np.ndarray:
+    """Force (nt,) [N] the member exerts on the block of a sliding pair along the block's line."""
+    return -f.force * friction_law(mo, f)
 
 
 @dataclass(frozen=True)
@@ -50,7 +62,11 @@ class Loads(Effect):
         for ld in asm.mech.loads.values():
             loads[:, motion.joint_names.index(ld.joint)] += np.asarray(ld.force)
         for f in asm.mech.frictions.values():
-            loads[:, motion.joint_names.index(f.joint)] += rigid_friction(motion, f)
+            if f.axis is not None:  # a sliding pair's friction is a force inside the pair
+                loads[:, motion.joint_names.index(f.joint)] += rigid_friction(motion, f)
+
+    def pair_loads(self, asm, motion: Motion) -> dict:
+        return {f.joint: pair_friction(motion, f) for f in asm.mech.frictions.values() if f.axis is None}
 
     def element_terms(self, asm, chunk: Chunk) -> None:
         g = asm.model.groups["load"]
@@ -60,8 +76,10 @@ class Loads(Effect):
         for k, it in enumerate(g.meta["items"]):
             if isinstance(it, Load):
                 Q[:, k] = it.force
+            elif isinstance(it, tuple):  # ("reaction", f): the member's side of a sliding pair's friction
+                Q[:, k] = -rigid_friction(chunk.motion, it[1], mech=asm.mech)
             elif it.follows == "rigid":
-                Q[:, k] = rigid_friction(chunk.motion, it)
+                Q[:, k] = rigid_friction(chunk.motion, it, mech=asm.mech)
         chunk.acc.add("load", "Q", Q)
 
     def state_terms(self, asm, motion: Motion, U, V, out: StateTerms) -> None:
