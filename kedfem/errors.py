@@ -77,6 +77,10 @@ class PlausibilityWarning(UserWarning):
     """A result leaves the model's theory: deflections beyond small, stresses beyond yield."""
 
 
+class EffectWarning(UserWarning):
+    """The mechanism declares components whose effect the scene leaves out (so they do nothing)."""
+
+
 class AccuracyWarning(UserWarning):
     """A result's estimated time-discretisation error exceeds the scene's tolerance."""
 

@@ -262,3 +262,11 @@ def test_friction_in_a_sliding_pair():
         m.friction("again", "B", force=1.0, axis=(1.0, 0.0))
     with pytest.raises(kf.InputError, match="give the axis="):
         m.friction("again", "P", force=1.0)
+
+
+def test_declared_friction_without_the_loads_effect_warns():
+    m = _cantilever_with_block(0.0, speed=2 * math.pi * 0.1)
+    m.friction("slide", "B", force=20.0, smoothing=2e-3)
+    with pytest.warns(kf.EffectWarning, match="slide are declared but .* leave out 'loads'"):
+        kf.solve(kf.Scene(m, effects=("inertia", "coupling"), damping=kf.ModalDamping(0.05), steps=24,
+                          estimate=False))

@@ -31,7 +31,7 @@ from ..solvers import schemes
 from ..fe.model import FEModel
 from ..fe.assembler import Assembler
 from ..fe.damping import ModalDamping
-from ..errors import AccuracyWarning, InputError
+from ..errors import AccuracyWarning, EffectWarning, InputError
 from ..motion.kinematics import Cycle, kinematics
 from ..fe.modal_damping import DampingField
 from ..solvers.nonlinear import fixed_point, fixed_point_or_anderson
@@ -408,7 +408,9 @@ class _Run:
         lo, hi = f.min(axis=0), f.max(axis=0)
         self._bands = (lo, hi)
         f_kin = self._motion_band(level=1e-3 * sc.rtol)
-        reach = max(f_kin, self._friction_band())
+        f_fr = self._friction_band()
+        self._friction_reach = f_fr if f_fr > f_kin else 0.0
+        reach = max(f_kin, f_fr)
         excited = lo <= reach
         if excited.any():  # the time variation mixes an excited mode into its neighbours
             excited |= lo <= float(hi[excited].max()) + f_kin
@@ -647,7 +649,19 @@ class _Run:
             self._bar.close()
             self._bar = None
 
+    def _unsimulated(self) -> None:
+        """Warn when the mechanism declares loads or friction and the scene leaves out ``loads``."""
+        mech, eff = self.scene.mech, set(self.scene.effects)
+        names = [*mech.loads, *mech.frictions]
+        if names and "loads" not in eff:
+            msg = (f"{mech.name}: the loads and friction {', '.join(names)} are declared but the scene's "
+                   f"effects ({', '.join(self.scene.effects)}) leave out 'loads', so they are not "
+                   "simulated; add 'loads' to the effects")
+            log.warning(msg)
+            warnings.warn(msg, EffectWarning, stacklevel=4)
+
     def _run(self) -> PeriodicResult:
+        self._unsimulated()
         sc, scheme = self.scene, self.scheme
         est = None
         need, f_res = self.resolution() if (sc.estimate or sc.steps is None) else (0, 0.0)
@@ -737,6 +751,10 @@ class _Run:
                 why = (f"estimated error of the peaks {est.peak:.1e} cannot be trusted: the coarser "
                        f"levels do not resolve the modes up to {f_res:.4g} Hz the drive excites "
                        f"(they need >= {need} time elements)")
+                if getattr(self, "_friction_reach", 0.0):
+                    smooth = min(f.smoothing for f in sc.mech.frictions.values())
+                    why += (f"; the friction's reversal (smoothing {smooth:g} m/s) reaches "
+                            f"{self._friction_reach:.4g} Hz: a larger smoothing= costs fewer elements")
             else:
                 why = (f"estimated error of the peaks {est.peak:.1e} cannot be trusted: no "
                        f"convergence rate observed over three levels")
