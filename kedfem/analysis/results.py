@@ -584,7 +584,7 @@ class PeriodicResult:
         deflection), for an axial one ``N = P_a b / L`` before ``a`` and ``-P_a a / L`` after.
         """
         from .loads import contact_forces
-        from ..fe.slots import block_abscissa
+        from ..fe.slots import block_abscissa, element_at
         contact = self._cache.get("contact")
         if contact is None:
             contact = self._cache["contact"] = contact_forces(self)
@@ -597,9 +597,8 @@ class PeriodicResult:
         for jt in blocks:
             F = -contact[jt.name]  # the pin's force on the link
             Px, Py = c * F[:, 0] + s * F[:, 1], -s * F[:, 0] + c * F[:, 1]
-            pos = block_abscissa(self.model, jt.name, self.motion)
-            e = np.clip(np.floor(pos / L).astype(int), 0, lk.elements - 1)
-            a = (pos - e * L)[:, None]
+            e, zeta = element_at(lk, block_abscissa(self.model, jt.name, self.motion))
+            a = (zeta * L)[:, None]
             b = L - a
             r1 = -Py[:, None] * b**2 / 2
             r2 = -Py[:, None] * (L**3 / 3 - a * L**2 / 2 + a**3 / 6)
@@ -795,16 +794,15 @@ class PeriodicResult:
 
     def _block_stress(self, lk, r: int) -> list[tuple[float, float]]:
         """(abscissa [m], stress [Pa]) under every block sliding on link ``lk`` at instant ``r``."""
-        from ..fe.slots import block_abscissa
+        from ..fe.slots import block_abscissa, element_at
         out = []
         sec = lk.section
         for jt in self.model.mech.joints.values():
             if jt.kind != "slot" or jt.on != lk.name:
                 continue
             x = float(block_abscissa(self.model, jt.name, self.motion)[r])
-            Le = lk.length / lk.elements
-            e = min(max(int(np.floor(x / Le)), 0), lk.elements - 1)
-            M, N = self._forces_at(lk.name, np.array([x / Le - e]))
+            e, zeta = element_at(lk, x)
+            M, N = self._forces_at(lk.name, np.array([zeta]))
             out.append((x, float(abs(N[r, e, 0]) / sec.A + abs(M[r, e, 0]) * sec.c / sec.I)))
         return out
 

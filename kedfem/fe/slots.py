@@ -27,35 +27,12 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
+from ..model.elements import hermite
 from ..motion.kinematics import slot_direction
 
-__all__ = ["slot_point_form", "slot_rotation_form", "hermite", "block_abscissa"]
+__all__ = ["slot_point_form", "slot_rotation_form", "block_abscissa", "element_at"]
 
 _S = np.array([[0.0, -1.0], [1.0, 0.0]])
-
-
-def hermite(z: np.ndarray, order: int) -> np.ndarray:
-    """Derivative ``order`` (0-3) of the cubic Hermite functions w.r.t. ``zeta``.
-
-    Parameters
-    ----------
-    z : ndarray, shape (nt,)
-        Fractions of the element length, 0 at node 1, 1 at node 2.
-    order : int
-
-    Returns
-    -------
-    ndarray, shape (4, nt)
-        ``H1, H2, H3, H4`` with ``v = H1 v1 + L H2 theta1 + H3 v2 + L H4 theta2``.
-    """
-    one, z2, z3 = np.ones_like(z), z * z, z * z * z
-    if order == 0:
-        return np.stack([1 - 3 * z2 + 2 * z3, z - 2 * z2 + z3, 3 * z2 - 2 * z3, -z2 + z3])
-    if order == 1:
-        return np.stack([-6 * z + 6 * z2, 1 - 4 * z + 3 * z2, 6 * z - 6 * z2, -2 * z + 3 * z2])
-    if order == 2:
-        return np.stack([-6 + 12 * z, -4 + 6 * z, 6 - 12 * z, -2 + 6 * z])
-    return np.stack([12 * one, 6 * one, -12 * one, 6 * one])
 
 
 def _chain(f, z1, z2):
@@ -86,6 +63,13 @@ def _line(fe, joint, motion):
 def block_abscissa(fe, joint: str, motion) -> np.ndarray:
     """Abscissa (nt,) [m] of a slot joint's block on its link, from the link's joint ``a``."""
     return _line(fe, joint, motion)[1][0]
+
+
+def element_at(lk, x):
+    """Element index and fraction ``zeta`` in it of abscissae ``x`` [m] on flexible link ``lk``."""
+    Le = lk.length / lk.elements
+    e = np.clip(np.floor(np.asarray(x, dtype=float) / Le).astype(int), 0, lk.elements - 1)
+    return e, np.asarray(x, dtype=float) / Le - e
 
 
 def _rotate(v):
@@ -142,12 +126,12 @@ class _Sum:
     def form(self, order):
         """The affine form ``(cols, C, C1, C2, p, p1, p2)`` with the columns in ``order``."""
         cols = list(order)
+        where = np.array([cols.index(c) for c in self.cols], dtype=int)  # own column -> final column
         C = np.zeros((3, self.nt, self.dim, len(cols)))
         for pos, *Ms in self.parts:
-            for j, pj in enumerate(pos):
-                at = cols.index(self.cols[pj])
-                for o in range(3):
-                    C[o, :, :, at] += Ms[o][..., j]
+            at = where[pos]  # distinct within a part
+            for o in range(3):
+                C[o][..., at] += Ms[o]
         p = (None, None, None) if self.p is None else self.p
         return (tuple(cols), C[0], C[1], C[2]) + tuple(p)
 
@@ -170,8 +154,7 @@ def _beam_terms(fe, joint, motion, pform, rform, acc: _Sum, u, xi, what: str):
     ne = lk.elements
     Le = lk.length / ne
     nt = motion.n
-    e = np.clip(np.floor(xi[0] / Le).astype(int), 0, ne - 1)
-    z = xi[0] / Le - e
+    e, z = element_at(lk, xi[0])
     z1, z2 = xi[1] / Le, xi[2] / Le
     n = _rotate(u)
     rows = np.arange(nt)

@@ -32,6 +32,7 @@ __all__ = [
     "linear_load",
     "rotation_blocks",
     "shape_functions",
+    "hermite",
     "shape_curvatures",
     "timoshenko_stiffness",
     "U_DOFS",
@@ -329,6 +330,34 @@ def rotation_blocks(theta):
     return T
 
 
+def hermite(xi, order: int = 0) -> np.ndarray:
+    """Derivative ``order`` (0-3) w.r.t. ``xi`` of the cubic Hermite functions of the element.
+
+    Parameters
+    ----------
+    xi : array_like, shape (n,)
+        Fractions of the element length, 0 at node 1, 1 at node 2.
+    order : int
+
+    Returns
+    -------
+    H : ndarray, shape (4, n)
+        ``H1, H2, H3, H4`` with ``v = H1 v1 + L H2 theta1 + H3 v2 + L H4 theta2``.
+    """
+    xi = np.atleast_1d(np.asarray(xi, dtype=float))
+    if order == 0:
+        return np.stack([1 - 3 * xi**2 + 2 * xi**3, xi - 2 * xi**2 + xi**3, 3 * xi**2 - 2 * xi**3,
+                         -(xi**2) + xi**3])
+    if order == 1:
+        return np.stack([-6 * xi + 6 * xi**2, 1 - 4 * xi + 3 * xi**2, 6 * xi - 6 * xi**2, -2 * xi + 3 * xi**2])
+    if order == 2:
+        return np.stack([-6 + 12 * xi, -4 + 6 * xi, 6 - 12 * xi, -2 + 6 * xi])
+    if order == 3:
+        one = np.ones_like(xi)
+        return np.stack([12 * one, 6 * one, -12 * one, 6 * one])
+    raise InputError(f"hermite: order must be 0 to 3, got {order!r}")
+
+
 def shape_functions(L, xi):
     """Axial and transverse shape functions at fractions ``xi`` of the element.
 
@@ -349,10 +378,11 @@ def shape_functions(L, xi):
     N = np.zeros((L.size, xi.size, 2, 6))
     N[..., 0, 0] = 1 - xi
     N[..., 0, 3] = xi
-    N[..., 1, 1] = 1 - 3 * xi**2 + 2 * xi**3
-    N[..., 1, 2] = L[:, None] * (xi - 2 * xi**2 + xi**3)
-    N[..., 1, 4] = 3 * xi**2 - 2 * xi**3
-    N[..., 1, 5] = L[:, None] * (-(xi**2) + xi**3)
+    H = hermite(xi)
+    N[..., 1, 1] = H[0]
+    N[..., 1, 2] = L[:, None] * H[1]
+    N[..., 1, 4] = H[2]
+    N[..., 1, 5] = L[:, None] * H[3]
     return N
 
 
@@ -375,8 +405,9 @@ def shape_curvatures(L, xi):
     xi = np.atleast_1d(np.asarray(xi, dtype=float))
     Lc = L[:, None]
     B = np.zeros((L.size, xi.size, 6))
-    B[..., 1] = (-6 + 12 * xi) / Lc**2
-    B[..., 2] = (-4 + 6 * xi) / Lc
-    B[..., 4] = (6 - 12 * xi) / Lc**2
-    B[..., 5] = (-2 + 6 * xi) / Lc
+    H = hermite(xi, 2)
+    B[..., 1] = H[0] / Lc**2
+    B[..., 2] = H[1] / Lc
+    B[..., 4] = H[2] / Lc**2
+    B[..., 5] = H[3] / Lc
     return B
