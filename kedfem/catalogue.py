@@ -8,9 +8,16 @@ or a function used as ``build``). Names come from, in this order:
    ``name = "package.module"`` or ``"package.module:function"``. kedfem's own
    catalogue (the top-level ``mechanisms/`` package) is registered there in
    ``pyproject.toml``, and a user's package registers its linkages the same way;
-3. a reference ``"package.module:function"`` given as the name itself (scene
-   files: ``[mechanism] name = "mylinks:hoekens"``; CLI: ``kedfem run
-   mylinks:hoekens``), imported from ``sys.path`` and then the working folder.
+3. a reference ``"package.module:function"`` or ``"path/to/file.py:function"``
+   given as the name itself (CLI: ``kedfem run mylinks:hoekens``; scene files:
+   ``[mechanism] builder = "mylinks:hoekens"``), imported from the Python path,
+   else from the scene file's folder or the working folder (without adding
+   either to ``sys.path``). A scene may name such code only where the user
+   trusts it (:mod:`kedfem.trust`): that is checked on disk before anything is
+   imported, and the builder found must be a Python function in trusted code.
+
+A builder is called through :func:`call_builder`: the parameters are bound to
+its signature first, and what it returns must be a :class:`kedfem.Mechanism`.
 
 The core never imports the catalogue package by name: kedfem's own entries are
 loaded from their files beside the ``kedfem`` package, so a user's folder that
@@ -45,10 +52,13 @@ from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any
 
-from .errors import InputError, did_you_mean
+from .errors import InputError, KedError, did_you_mean
 from .fe.effects import LINEAR_EFFECTS, ModalDamping
+from .trust import Located, Trust, check as check_trust, check_function, locate
+from .trust import import_module as import_located
 
 __all__ = ["GROUP", "SOLVER_KEYS", "Preset", "MechanismInfo", "available", "get", "info", "build", "register",
+           "call_builder",
            "is_reference", "is_file_reference", "canonical", "reference_of", "for_instance", "parameters"]
 
 log = logging.getLogger(__name__)
@@ -162,6 +172,15 @@ class MechanismInfo:
                         self.preset.name, dict(params), e, mech.name)
             return mech.name
 
+    def make(self, **params):
+        """The mechanism built with keyword ``params``, checked (:func:`call_builder`).
+
+        Returns
+        -------
+        kedfem.Mechanism
+        """
+        return call_builder(self.name, self.build, params)
+
     def scene(self, params: Mapping[str, Any] | None = None, **scene_args):
         """The preset scene of the mechanism built with ``params``.
 
@@ -178,7 +197,7 @@ class MechanismInfo:
         """
         from .analysis.scene import Scene
         params = dict(params or {})
-        mech = self.build(**params)
+        mech = self.make(**params)
         kw = dict(self.preset.scene_arguments(), name=self.scene_name(params, mech))
         kw.update(scene_args)
         return Scene(mech, **kw)
@@ -312,8 +331,10 @@ def _load_entry(name: str, ep):
     path = _shipped_file(module.strip()) if dist in (None, "kedfem") else None
     try:
         mod = _load_file(module.strip(), path) if path is not None else importlib.import_module(module.strip())
-    except ImportError as e:
-        raise InputError(f"mechanism {name!r} (entry point {ep.value!r}) cannot be imported: {e}") from None
+    except KeyboardInterrupt:
+        raise
+    except BaseException as e:  # noqa: BLE001 - an installed mechanism that fails (or exits) on import
+        raise InputError(f"mechanism {name!r} (entry point {ep.value!r}) cannot be imported: {_what(e)}") from None
     obj = getattr(mod, attr.strip()) if attr.strip() else mod
     return _as_mechanism(obj, name)
 
@@ -321,37 +342,103 @@ def _load_entry(name: str, ep):
 _USER_PREFIX = "kedfem_user_"
 
 
-def _load_reference(name: str, base_dir=None):
-    if is_file_reference(name):
-        path, _, attr = name.rpartition(":")
-        p = Path(path)
-        if not p.is_file():
-            raise InputError(f"mechanism {name!r}: no file {p}")
-        qual = _USER_PREFIX + re.sub(r"\W", "_", p.stem) + "_" + hashlib.sha1(str(p).encode()).hexdigest()[:8]
-        try:
+def _search_folders(base_dir, trust: Trust) -> tuple[str, ...]:
+    """Folders a module reference is looked up in when it is not on the Python path."""
+    folders = [str(Path(d).resolve()) for d in (base_dir, os.getcwd()) if d is not None]
+    return tuple(dict.fromkeys(folders + list(trust.search)))
+
+
+def _locate_checked(key: str, base_dir, trust: Trust):
+    """Find a reference's code on disk, refuse it unless ``trust`` covers it (nothing is run)."""
+    target, _, _ = key.rpartition(":")
+    if is_file_reference(key):
+        if not Path(target).is_file():
+            raise InputError(f"mechanism {key!r}: no file {target}")
+        check_trust(key, trust)
+        return None
+    located = locate(target, _search_folders(base_dir, trust))
+    check_trust(key, trust, located=located)
+    if located is None:
+        where = " or ".join(_search_folders(base_dir, trust))
+        raise InputError(f"mechanism {key!r}: no module {target!r} on the Python path or in {where}")
+    return located
+
+
+def _load_reference(name: str, located: Located | None, trust: Trust):
+    """Import a checked reference (``sys.path`` untouched) and return its builder."""
+    target, _, attr = name.rpartition(":")
+    try:
+        if located is None:  # a file
+            p = Path(target)
+            qual = _USER_PREFIX + re.sub(r"\W", "_", p.stem) + "_" + hashlib.sha1(str(p).encode()).hexdigest()[:8]
             mod = _load_file(qual, p, qual=qual)
-        except Exception as e:  # the user's file failed to import: say which file and why
-            raise InputError(f"mechanism {name!r}: importing {p} failed: {type(e).__name__}: {e}") from None
-        module = str(p)
-    else:
-        module, _, attr = name.partition(":")
-        try:
-            mod = importlib.import_module(module)
-        except ModuleNotFoundError as e:
-            folders = [str(Path(d).resolve()) for d in (base_dir, os.getcwd()) if d is not None]
-            folders = [d for d in dict.fromkeys(folders) if d not in sys.path]
-            if e.name != module.split(".")[0] or not folders:
-                raise InputError(f"mechanism {name!r}: cannot import {module!r}: {e}") from None
-            sys.path.extend(folders)  # the scene file's folder and the working folder
-            try:
-                mod = importlib.import_module(module)
-            except ModuleNotFoundError:
-                raise InputError(f"mechanism {name!r}: no module {module!r} on the Python path or in "
-                                 f"{' or '.join(folders)}") from None
+        else:
+            mod = import_located(located)
+    except KeyboardInterrupt:
+        raise
+    except KedError as e:
+        raise InputError(f"mechanism {name!r}: importing {target} failed: {e}") from None
+    except BaseException as e:  # noqa: BLE001 - the user's module failed (or exited) on import: say so
+        raise InputError(f"mechanism {name!r}: importing {target} failed: {_what(e)}") from None
     fn = getattr(mod, attr, None)
     if fn is None:
-        raise InputError(f"mechanism {name!r}: {module!r} has no {attr!r}")
+        raise InputError(f"mechanism {name!r}: {target!r} has no {attr!r}")
+    check_function(name, fn, trust)
     return _as_mechanism(fn, name)
+
+
+def _what(e: BaseException) -> str:
+    """An exception as a message (``sys.exit`` named as such)."""
+    if isinstance(e, SystemExit):
+        return f"it called sys.exit({e.code!r})"
+    return f"{type(e).__name__}: {e}"
+
+
+def call_builder(name: str, build: Callable, params: Mapping[str, Any]):
+    """Call a mechanism's builder with keyword ``params`` and check that it built a Mechanism.
+
+    Before the call, the parameters are bound to the builder's signature (a missing or unknown
+    parameter is named without running it) and a return annotation other than ``Mechanism`` is
+    refused; a ``sys.exit`` inside the builder, or a return value that is not a
+    :class:`kedfem.Mechanism`, is an :class:`InputError` naming the builder.
+
+    Raises
+    ------
+    InputError
+        Parameters that do not fit the signature, an exit, or a result that is not a Mechanism.
+    KedError, Exception
+        What the builder itself raises on its values (passed on).
+    """
+    from .model.mechanism import Mechanism
+    try:
+        sig = inspect.signature(build)
+    except (TypeError, ValueError):
+        sig = None
+    if sig is not None:
+        ret = sig.return_annotation
+        if ret is not inspect.Signature.empty and ret is not Mechanism and \
+                not (isinstance(ret, str) and ret.replace(" ", "").split(".")[-1] == "Mechanism"):
+            raise InputError(f"mechanism {name!r}: the builder is declared to return {ret!r}, not a "
+                             "kedfem.Mechanism; it is not called")
+        try:
+            sig.bind(**params)
+        except TypeError as e:
+            raise InputError(f"mechanism {name!r}: its builder cannot take these parameters ({e})") from None
+    try:
+        out = build(**params)
+    except (KeyboardInterrupt, Exception):
+        raise
+    except BaseException as e:  # noqa: BLE001 - SystemExit, GeneratorExit in the user's builder
+        raise InputError(f"mechanism {name!r}: the builder did not build ({_what(e)})") from None
+    if not isinstance(out, Mechanism):
+        raise InputError(f"mechanism {name!r}: the builder must return a kedfem.Mechanism, it returned "
+                         f"{type(out).__name__} {_short_repr(out)}")
+    return out
+
+
+def _short_repr(v) -> str:
+    r = repr(v)
+    return r if len(r) <= 60 else r[:57] + "..."
 
 
 def parameters(source) -> dict[str, Any]:
@@ -428,8 +515,9 @@ def for_instance(mech) -> MechanismInfo:
     return MechanismInfo(mech.name, types.SimpleNamespace(build=build), build, {}, frozenset(), Preset())
 
 
-def info(name: str, base_dir=None) -> MechanismInfo:
-    """The catalogue entry of mechanism ``name`` (see :func:`get` for the names and ``base_dir``).
+def info(name: str, base_dir=None, *, trust: Trust | None = None) -> MechanismInfo:
+    """The catalogue entry of mechanism ``name`` (see :func:`get` for the names, ``base_dir`` and
+    ``trust``).
 
     Raises
     ------
@@ -437,7 +525,7 @@ def info(name: str, base_dir=None) -> MechanismInfo:
         For an unknown name, one that cannot be loaded, or a mechanism whose
         ``PRESET`` or ``SIGNED_PARAMETERS`` is malformed.
     """
-    source = get(name, base_dir)
+    source = get(name, base_dir, trust=trust)
     key = canonical(name, base_dir)
     entry = _INFO.get(key)
     if entry is None or entry.source is not source:
@@ -445,7 +533,7 @@ def info(name: str, base_dir=None) -> MechanismInfo:
     return entry
 
 
-def get(name: str, base_dir=None):
+def get(name: str, base_dir=None, *, trust: Trust | None = None):
     """The mechanism ``name``: an object with ``build(**params)`` (and ``DEFAULTS`` if it has them).
 
     Parameters
@@ -455,20 +543,32 @@ def get(name: str, base_dir=None):
         ``"path/to/file.py:function"``.
     base_dir : path, optional
         Folder a relative file path is relative to, and searched for a module that is not on the
-        Python path (a scene file's folder); the working folder is searched too.
+        Python path (a scene file's folder); the working folder is searched too. ``sys.path`` is
+        never changed.
+    trust : kedfem.trust.Trust, optional
+        The code a reference may run (see :mod:`kedfem.trust`): scenes pass the user's trust;
+        None (a call from Python, which runs code anyway) trusts everything.
 
     Raises
     ------
     InputError
         For an unknown name (listing the known ones) or one that cannot be loaded.
+    UntrustedCodeError
+        A reference to code that ``trust`` does not cover (checked before anything is imported).
     """
     key = canonical(name, base_dir)
+    trust = Trust(everything=True) if trust is None else trust
+    located = None
+    if key not in _REGISTERED and is_reference(key):
+        located = _locate_checked(key, base_dir, trust)  # before the cache: trust is per call
     if key in _LOADED:
+        if is_reference(key):
+            check_function(key, getattr(_LOADED[key], "build", None), trust)
         return _LOADED[key]
     if key in _REGISTERED:
         out = _REGISTERED[key]
     elif is_reference(key):
-        out = _load_reference(key, base_dir)
+        out = _load_reference(key, located, trust)
     else:
         eps = _entry_points()
         if key not in eps:
@@ -481,5 +581,10 @@ def get(name: str, base_dir=None):
 
 
 def build(name: str, **params):
-    """Build mechanism ``name`` with keyword parameters."""
-    return get(name).build(**params)
+    """Build mechanism ``name`` with keyword parameters (see :func:`call_builder`).
+
+    Returns
+    -------
+    kedfem.Mechanism
+    """
+    return call_builder(canonical(name), get(name).build, params)

@@ -115,21 +115,26 @@ class _Loaded:
     data: dict          # scene dictionary (for sweeps)
     sweep: dict
     source: str
+    trust: object       # kedfem.trust.Trust: the code the scene may name (sweep workers too)
 
 
-def _load(target: str | None, overrides: dict) -> _Loaded:
+def _load(target: str | None, overrides: dict, trusted=None) -> _Loaded:
     """Scene from a file, a mechanism name or the built-in default, with command-line overrides.
 
     The default scene is the preset scene of :data:`kedfem.analysis.defaults.DEFAULT_MECHANISM`,
-    loaded like any mechanism name.
+    loaded like any mechanism name. ``trusted``: the ``--trust`` targets; a builder reference
+    given as ``target`` (the command's own argument) is trusted.
     """
     from . import catalogue
     from .analysis.defaults import DEFAULT_MECHANISM
     from .io import scenefile as sf
+    from .trust import Trust
+    trust = Trust.of(trusted, "--trust")
     if target is not None and (Path(target).suffix.lower() == ".toml" or Path(target).is_file()):
-        spec = sf.load_spec(Path(target), overrides)
+        trust = trust.searching(Path(target).resolve().parent)
+        spec = sf.load_spec(Path(target), overrides, trust=trust)
         return _Loaded(spec.scene, spec.outputs, sf.with_overrides(spec.data, overrides), spec.sweep,
-                       str(Path(target)))
+                       str(Path(target)), trust)
     key = DEFAULT_MECHANISM if target is None else target
     key = catalogue.canonical(key)  # a file reference with its absolute path (sweep workers load it)
     if target is not None and not catalogue.is_reference(key) and key not in catalogue.available():
@@ -137,12 +142,15 @@ def _load(target: str | None, overrides: dict) -> _Loaded:
         raise InputError(f"no scene file or mechanism named {target!r}{sf._suggest(key, avail)}; "
                          f"mechanisms: {', '.join(avail)} (kedfem list), or 'package.module:function' or "
                          f"'my_file.py:function' for a builder of your own")
+    if catalogue.is_reference(key):
+        trust = trust | Trust.of_reference(key)  # the user named it on the command line
     data = sf.with_overrides({"mechanism": {"name": key}}, overrides)
     source = "built-in default scene" if target is None else f"mechanism {key}"
-    spec = sf.parse_scene(data, source=source, overridden=overrides)
+    spec = sf.parse_scene(data, source=source, overridden=overrides, trust=trust)
     if target is None:
-        return _Loaded(spec.scene, spec.outputs, {"mechanism": None, "name": spec.scene.name, **data}, {}, source)
-    return _Loaded(spec.scene, spec.outputs, data, {}, f"{source} (preset scene)")
+        return _Loaded(spec.scene, spec.outputs, {"mechanism": None, "name": spec.scene.name, **data}, {}, source,
+                       trust)
+    return _Loaded(spec.scene, spec.outputs, data, {}, f"{source} (preset scene)", trust)
 
 
 @contextlib.contextmanager
@@ -181,7 +189,7 @@ def _check_dofs(scene, dofs) -> None:
 def _cmd_run(args) -> int:
     from .io.report import check_out_dir, format_summary, write_result
     t0 = time.perf_counter()
-    ld = _load(args.scene, _overrides(args))
+    ld = _load(args.scene, _overrides(args), args.trust)
     o = ld.outputs
     out_dir = Path(args.out) if args.out else o.dir
     sc = ld.scene
@@ -274,7 +282,7 @@ def _cmd_sweep(args) -> int:
     from .io.report import check_out_dir, relative
     from .io import scenefile as sf
     from .io import sweep as sw
-    ld = _load(args.scene, _overrides(args))
+    ld = _load(args.scene, _overrides(args), args.trust)
     axes = dict(ld.sweep)
     for text in args.param or ():
         k, v = sw.parse_axis(text)
@@ -283,7 +291,8 @@ def _cmd_sweep(args) -> int:
         raise InputError("sweep: nothing to sweep: give --param KEY=V1,V2,... (or KEY=START:STOP:NUM), "
                          "or a scene file with a [sweep] table")
     # validate the axis keys against the base scene before starting workers
-    sf.parse_scene(dict(ld.data, sweep={k: list(v) for k, v in axes.items()}), source="command line")
+    sf.parse_scene(dict(ld.data, sweep={k: list(v) for k, v in axes.items()}), source="command line",
+                   trust=ld.trust)
     out_dir = Path(args.out) if args.out else ld.outputs.dir
     check_out_dir(out_dir)
     check_replaceable(out_dir)
@@ -306,7 +315,8 @@ def _cmd_sweep(args) -> int:
         with _report_warnings():
             res = sw.run_sweep(ld.data, points=points, scheduler=args.scheduler, max_workers=args.workers,
                                progress=False if args.no_progress else None,
-                               frequencies=not args.no_frequencies, done=done, on_result=journal.append)
+                               frequencies=not args.no_frequencies, done=done, on_result=journal.append,
+                               trust=ld.trust)
     finally:
         journal.close()
     res = dataclasses.replace(res, axes=tuple(sw._normalize_axes(axes).items()))
@@ -350,7 +360,7 @@ def _cmd_export(args) -> int:
                          f"(give the scene first: kedfem export SCENE --animate [NAME.gif])")
     from .io import export
     from .io.outdir import RunFolder
-    ld = _load(args.scene, _overrides(args))
+    ld = _load(args.scene, _overrides(args), args.trust)
     o = ld.outputs
     out_dir = Path(args.out) if args.out else o.dir
     check_out_dir(out_dir)
@@ -493,7 +503,7 @@ def _publish(out_dir: Path, command: str, source: str, write) -> None:
 def _cmd_campbell(args) -> int:
     from .analysis.campbell import campbell
     from .io.report import check_out_dir
-    ld = _load(args.scene, _overrides(args))
+    ld = _load(args.scene, _overrides(args), args.trust)
     speeds = _rpm_values(args.speeds, "--speeds")
     out_dir = Path(args.out) if args.out else ld.outputs.dir
     check_out_dir(out_dir)
@@ -513,7 +523,7 @@ def _cmd_campbell(args) -> int:
 
 def _cmd_critical(args) -> int:
     from .analysis.critical import critical_speed
-    ld = _load(args.scene, _overrides(args))
+    ld = _load(args.scene, _overrides(args), args.trust)
     rpm = 2 * math.pi / 60
     print(f"kedfem {__version__}: {args.kind} critical speed of {ld.scene.name or ld.scene.mech.name} in "
           f"{args.lo:g} .. {args.hi:g} rpm ...", flush=True)
@@ -532,7 +542,7 @@ def _cmd_stability_map(args) -> int:
     from .io.design_plots import stability_map
     from .io.report import check_out_dir
     from .io.sweep import parse_axis
-    ld = _load(args.scene, _overrides(args))
+    ld = _load(args.scene, _overrides(args), args.trust)
     speeds = _rpm_values(args.speeds, "--speeds")
     key, values = parse_axis(args.param)
     out_dir = Path(args.out) if args.out else ld.outputs.dir
@@ -542,7 +552,8 @@ def _cmd_stability_map(args) -> int:
           f"{len(values)} values of {key} on {args.scheduler} ...", flush=True)
     with _report_warnings():
         smap = stability_map(ld.data, speeds, key, list(values), scheduler=args.scheduler,
-                             max_workers=args.workers, progress=False if args.no_progress else None)
+                             max_workers=args.workers, progress=False if args.no_progress else None,
+                             trust=ld.trust)
     print(f"  {key:>24s}  first onset on the grid [rpm]")
     for v, s in zip(smap.values, smap.onsets()):
         print(f"  {v:24.6g}  {s * 60 / (2 * math.pi):.1f}" if math.isfinite(s) else f"  {v:24.6g}  none")
@@ -582,6 +593,10 @@ def build_parser() -> argparse.ArgumentParser:
     scene.add_argument("--hold", choices=("zoh", "foh", "magnus2"), help="= --method for the exponential holds")
     scene.add_argument("--effects", type=_effects_arg, metavar="E1,E2,...",
                        help="effects to simulate, comma-separated, or 'all' (kedfem list)")
+    scene.add_argument("--trust", action="append", metavar="FILE|FOLDER|MODULE",
+                       help="let the scene file run the builder code it names when that code lies in this .py "
+                       "file, folder (a scene file: its folder) or module (repeatable); without it a scene names "
+                       "catalogue mechanisms only. A builder given as SCENE itself is trusted.")
 
     p = argparse.ArgumentParser(
         prog="kedfem", description="Kineto-ElastoDynamics of planar elastic linkages: periodic steady-state "

@@ -97,9 +97,11 @@ def test_a_users_builder_is_found_by_the_cli_scene_files_and_sweeps(user_folder)
     assert "user-rocker" in (user_folder / "o" / "summary.txt").read_text()
     (user_folder / "s.toml").write_text('steps = 24\nspeed_rpm = 300.0\n[mechanism]\nname = "mylinks:rocker"\n'
                                         'length = 0.32\n[output]\nplots = false\nvtk = false\n')
-    r = run(kedfem_command() + ["sweep", "s.toml", "--param", "mechanism.elements=2,3", "--scheduler",
-                                "processes", "--workers", "2", "--no-progress", "--no-plots", "--out", "sw"],
-            user_folder)
+    sweep = ["sweep", "s.toml", "--param", "mechanism.elements=2,3", "--scheduler", "processes", "--workers", "2",
+             "--no-progress", "--no-plots", "--out", "sw"]
+    r = run(kedfem_command() + sweep, user_folder)  # the scene names code: not without --trust
+    assert r.returncode == 2 and "not trusted" in r.stderr and not (user_folder / "sw").exists()
+    r = run(kedfem_command() + sweep + ["--trust", "mylinks"], user_folder)
     assert r.returncode == 0, r.stderr + r.stdout
     assert "2 of 2 points solved" in r.stdout
     r = run(kedfem_command() + ["run", "mylinks:nothing", "--steps", "24"], user_folder)

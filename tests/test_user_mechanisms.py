@@ -67,7 +67,10 @@ def test_cli_runs_a_builder_file_and_a_scene_file_names_one_relative_to_itself(f
     assert r.returncode == 0, r.stderr
     assert "my crank-rocker" in r.stdout
     (folder / "lib" / "scene.toml").write_text('speed_rpm = 600\n[mechanism]\nbuilder = "my_linkage.py:build"\n')
-    r = kedfem_cli(["run", str(folder / "lib" / "scene.toml"), "--out", str(folder / "b")] + quick, "/")
+    refused = kedfem_cli(["run", str(folder / "lib" / "scene.toml"), "--out", str(folder / "b")] + quick, "/")
+    assert refused.returncode == 2 and "not trusted" in refused.stderr and not (folder / "b").exists()
+    r = kedfem_cli(["run", str(folder / "lib" / "scene.toml"), "--trust", str(folder / "lib" / "scene.toml"),
+                    "--out", str(folder / "b")] + quick, "/")
     assert r.returncode == 0, r.stderr
     # the same mechanism and speed (the builder's default is 600 rpm): the same peaks
     a, b = _peaks(folder / "a" / "peaks.csv"), _peaks(folder / "b" / "peaks.csv")

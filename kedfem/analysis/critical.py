@@ -288,7 +288,8 @@ def itp_root(f, a: float, b: float, fa: float, fb: float, width: float, more=lam
 
 
 def critical_speed(scene, lo: float, hi: float, *, rtol: float = 5e-3, kind: str = "parametric",
-                   linear: bool = True, scan: int = 0, max_solves: int = 14, nodes: int = 72) -> CriticalSpeed:
+                   linear: bool = True, scan: int = 0, max_solves: int = 14, nodes: int = 72,
+                   trust=None) -> CriticalSpeed:
     """Speed at which a linkage becomes parametrically unstable (or buckles), to a relative tolerance.
 
     Parameters
@@ -324,6 +325,8 @@ def critical_speed(scene, lo: float, hi: float, *, rtol: float = 5e-3, kind: str
         Most evaluations, the ends and the scan included.
     nodes : int
         Crank positions per cycle of the buckling kind's modal analysis.
+    trust : kedfem.trust.Trust, bool or targets, optional
+        Code a scene dictionary may name besides catalogue mechanisms (:mod:`kedfem.trust`).
 
     Returns
     -------
@@ -355,7 +358,7 @@ def critical_speed(scene, lo: float, hi: float, *, rtol: float = 5e-3, kind: str
     nodes = _int("critical_speed", "nodes", nodes, 3)
     if isinstance(scene, Mapping):
         from ..io.scenefile import scene_from_dict
-        scene = scene_from_dict(scene)
+        scene = scene_from_dict(scene, trust=trust)
     base = scene_at(scene, lo, owner="critical_speed")
     effects = linear_effects(base.effects) if (linear or kind == "buckling") else base.effects
     if kind == "parametric":

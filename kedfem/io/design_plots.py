@@ -275,7 +275,7 @@ def stability_chart(smap: StabilityMap, path, *, marks: Sequence[tuple[float, fl
 
 def stability_map(base: Mapping, speeds, param: str, values: Sequence, *, scheduler: str = "processes",
                   max_workers: int | None = None, executor=None, client=None,
-                  progress: bool | None = None) -> StabilityMap:
+                  progress: bool | None = None, builder=None, trust=None) -> StabilityMap:
     """Spectral radius over a grid of crank speed x one scene parameter, solved in parallel.
 
     Parameters
@@ -289,9 +289,10 @@ def stability_map(base: Mapping, speeds, param: str, values: Sequence, *, schedu
         Dotted scene key of the other axis (``"mechanism.coupler_EI"``, ``"damping.zeta"``).
     values : sequence of numbers, shape (n_values,)
         Its values.
-    scheduler, max_workers, executor, client, progress
+    scheduler, max_workers, executor, client, progress, builder, trust
         As :func:`kedfem.io.sweep.run_sweep` (``"processes"``, ``"serial"``, ``"local"``
-        or a Dask address).
+        or a Dask address; ``builder``: the mechanism's builder function or reference, trusted;
+        ``trust``: code the base may name, :mod:`kedfem.trust`).
 
     Returns
     -------
@@ -304,7 +305,12 @@ def stability_map(base: Mapping, speeds, param: str, values: Sequence, *, schedu
         numbers or that the scene rejects.
     """
     from . import scenefile
-    from .sweep import run_sweep
+    from .sweep import _with_builder, run_sweep
+    from ..trust import Trust
+    trust = Trust.of(trust, "stability_map: trust")
+    if builder is not None:
+        base = _with_builder(base, builder)
+        trust = trust | Trust.of_reference(base["mechanism"]["name"])
     if not isinstance(base, Mapping):
         raise InputError(f"stability_map: base must be a scene dictionary, got {type(base).__name__}")
     s = check_speeds(speeds, "stability_map", "speeds")
@@ -320,11 +326,11 @@ def stability_map(base: Mapping, speeds, param: str, values: Sequence, *, schedu
     scene = None
     for v in vals:  # every value against the scene before any worker starts
         scene = scenefile.scene_from_dict(scenefile.with_overrides(base, {param: v, "speed_rpm": rpm[0]}),
-                                          source=f"stability_map ({param} = {v!r})")
+                                          source=f"stability_map ({param} = {v!r})", trust=trust)
     with warnings.catch_warnings():  # deep in a tongue the response is huge: that is the map's finding
         warnings.simplefilter("ignore", PlausibilityWarning)
         res = run_sweep(base, {param: vals, "speed_rpm": rpm}, scheduler=scheduler, max_workers=max_workers,
-                        executor=executor, client=client, progress=progress, frequencies=False)
+                        executor=executor, client=client, progress=progress, frequencies=False, trust=trust)
     nv, ns = len(vals), s.size
     rho = np.full(nv * ns, np.nan)
     stable = np.zeros(nv * ns, dtype=bool)

@@ -1,7 +1,10 @@
 """TOML scene files: a scene as data, validated key by key.
 
 A scene file is read with the standard library's :mod:`tomllib`; it is data
-only, nothing in it is executed. Every value is checked before anything is
+only, nothing in it is executed. It names catalogue mechanisms (installed
+entry points); a builder file or module it names runs only where the user
+trusts that code (:mod:`kedfem.trust`: ``--trust``, ``trust=``), checked before
+anything is imported, and ``sys.path`` is never changed. Every value is checked before anything is
 computed, and every problem raises :class:`SceneFileError` (an
 :class:`~kedfem.errors.InputError`) whose message names the file, the line
 (found by scanning the file text, since :mod:`tomllib` reports no positions
@@ -86,8 +89,9 @@ from ..catalogue import parameters as mechanism_parameters
 from ..errors import InputError, KedError, did_you_mean
 from ..fe.effects import ModalDamping, Rayleigh, check_effects
 from ..model.mechanism import Mechanism
+from ..trust import Trust, UntrustedCodeError
 
-__all__ = ["SceneFileError", "Outputs", "Preset", "SceneSpec", "load_scene", "load_sweep",
+__all__ = ["SceneFileError", "UntrustedSceneError", "Outputs", "Preset", "SceneSpec", "load_scene", "load_sweep",
            "load_spec", "read_scene_file", "scene_from_dict", "parse_scene", "with_overrides", "mechanism_parameters",
            "preset", "MAX_STEPS", "MAX_ELEMENTS", "MAX_ITER", "MAX_MODES", "MAX_SWEEP_POINTS", "RPM",
            "check_steps", "grid_points", "grid_size", "describe_damping", "scene_summary"]
@@ -134,6 +138,11 @@ class SceneFileError(InputError):
         elif line:
             where = f"line {line}: "
         super().__init__(f"{where}{_keyfmt(key)}: {reason}" if key else f"{where}{reason}")
+
+
+class UntrustedSceneError(SceneFileError, UntrustedCodeError):
+    """A scene names code (a builder file or module) that the user has not trusted
+    (:mod:`kedfem.trust`); raised before anything is imported."""
 
 
 # ------------------------------------------------------------------ presets
@@ -257,19 +266,21 @@ class _Locator:
 class _Ctx:
     """Where values come from, to name them in errors."""
 
-    def __init__(self, source: str | None = None, text: str | None = None, overridden=()):
+    def __init__(self, source: str | None = None, text: str | None = None, overridden=(), trust=None):
         self.source = source
         # a scene file's folder: relative builder files are relative to it, and it is searched for
-        # builder modules
+        # builder modules (searching grants no trust)
         self.folder = str(Path(source).resolve().parent) if source and Path(source).suffix == ".toml" else None
         self.locator = _Locator(text) if text else None
         self.overridden = set(overridden)
+        self.trust = Trust.of(trust).searching(self.folder)
 
-    def error(self, key: str | None, reason: str) -> SceneFileError:
+    def error(self, key: str | None, reason: str, cls=None) -> SceneFileError:
+        cls = cls or SceneFileError
         if key is not None and any(key == o or key.startswith(o + ".") for o in self.overridden):
-            return SceneFileError(reason, key=key, path="command line")
+            return cls(reason, key=key, path="command line")
         line = self.locator.line(key) if self.locator else None
-        return SceneFileError(reason, key=key, path=self.source, line=line)
+        return cls(reason, key=key, path=self.source, line=line)
 
 
 _suggest = did_you_mean
@@ -382,7 +393,9 @@ def _mechanism(ctx: _Ctx, data: Mapping):
                         f"available: {', '.join(avail)}, or builder = 'my_linkage.py:build' "
                         "('package.module:build') for a builder of your own")
     try:
-        entry = catalogue.info(key, ctx.folder)
+        entry = catalogue.info(key, ctx.folder, trust=ctx.trust)
+    except UntrustedCodeError as e:
+        raise ctx.error(kname, str(e), cls=UntrustedSceneError) from None
     except KedError as e:
         raise ctx.error(kname, str(e)) from None
     defaults = entry.parameters
@@ -398,7 +411,7 @@ def _mechanism(ctx: _Ctx, data: Mapping):
             raise ctx.error(pk, f"unknown parameter of {key}{_suggest(k, known)}; known: {', '.join(known)}")
         params[k] = _mech_value(ctx, pk, k, v, defaults[k], k in entry.signed)
     try:
-        mech = entry.build(**params)
+        mech = entry.make(**params)
     except KedError as e:
         # point at the parameter the builder names ("coupler must be a length > 0 m"), else the table
         msg = str(e)
@@ -573,7 +586,7 @@ def _sweep(ctx, v, params: Mapping[str, Any]) -> dict[str, tuple]:
 
 
 def parse_scene(data: Mapping, *, source: str | None = None, text: str | None = None,
-                overridden=()) -> SceneSpec:
+                overridden=(), trust=None) -> SceneSpec:
     """Validate a scene dictionary (a parsed scene file) and build its scene.
 
     Parameters
@@ -586,6 +599,9 @@ def parse_scene(data: Mapping, *, source: str | None = None, text: str | None = 
         The file's text, to find the line of an offending key.
     overridden : iterable of str
         Dotted keys whose values came from the command line (named so in errors).
+    trust : kedfem.trust.Trust, bool or targets, optional
+        The code the scene may name (:meth:`kedfem.trust.Trust.of`); default: none, the scene
+        names catalogue mechanisms only.
 
     Returns
     -------
@@ -595,8 +611,10 @@ def parse_scene(data: Mapping, *, source: str | None = None, text: str | None = 
     ------
     SceneFileError
         Any bad, missing or unknown key; a mechanism that cannot be built.
+    UntrustedSceneError
+        The mechanism is a code reference that ``trust`` does not cover (nothing was imported).
     """
-    ctx = _Ctx(source, text, overridden)
+    ctx = _Ctx(source, text, overridden, trust)
     if not isinstance(data, Mapping):
         raise ctx.error(None, f"a scene must be a table, got {_typename(data)}")
     _unknown(ctx, data, _TOP_KEYS, "")
@@ -643,9 +661,10 @@ def parse_scene(data: Mapping, *, source: str | None = None, text: str | None = 
     return SceneSpec(scene, outputs, sweep, clean)
 
 
-def scene_from_dict(data: Mapping, *, source: str | None = None) -> Scene:
-    """The :class:`~kedfem.analysis.scene.Scene` of a scene dictionary (see :func:`parse_scene`)."""
-    return parse_scene(data, source=source).scene
+def scene_from_dict(data: Mapping, *, source: str | None = None, trust=None) -> Scene:
+    """The :class:`~kedfem.analysis.scene.Scene` of a scene dictionary (see :func:`parse_scene`;
+    ``trust=True`` lets a dictionary your own code wrote name a builder reference)."""
+    return parse_scene(data, source=source, trust=trust).scene
 
 
 def read_scene_file(path) -> tuple[dict, str]:
@@ -684,7 +703,7 @@ def read_scene_file(path) -> tuple[dict, str]:
     return data, text
 
 
-def load_scene(path, overrides: Mapping[str, Any] | None = None) -> tuple[Scene, Outputs]:
+def load_scene(path, overrides: Mapping[str, Any] | None = None, *, trust=None) -> tuple[Scene, Outputs]:
     """Load a TOML scene file.
 
     Parameters
@@ -694,6 +713,11 @@ def load_scene(path, overrides: Mapping[str, Any] | None = None) -> tuple[Scene,
     overrides : mapping, optional
         Dotted keys set before validation (``{"steps": 60}``), e.g. from the
         command line; errors name them as such.
+    trust : kedfem.trust.Trust, bool or targets, optional
+        Code the scene may name besides catalogue mechanisms (:mod:`kedfem.trust`): a ``.py``
+        file, a folder, the scene file itself (its folder), a module name, or ``True``.
+        Default: none; a scene that names a builder file or module raises
+        :class:`UntrustedSceneError` before anything is imported.
 
     Returns
     -------
@@ -703,23 +727,24 @@ def load_scene(path, overrides: Mapping[str, Any] | None = None) -> tuple[Scene,
     Raises
     ------
     SceneFileError
+    UntrustedSceneError
     """
-    spec = load_spec(path, overrides)
+    spec = load_spec(path, overrides, trust=trust)
     return spec.scene, spec.outputs
 
 
-def load_spec(path, overrides: Mapping[str, Any] | None = None) -> SceneSpec:
+def load_spec(path, overrides: Mapping[str, Any] | None = None, *, trust=None) -> SceneSpec:
     """Like :func:`load_scene`, returning the whole :class:`SceneSpec` (with the sweep axes)."""
     data, text = read_scene_file(path)
     overrides = dict(overrides or {})
     if overrides:
         data = with_overrides(data, overrides)
-    return parse_scene(data, source=str(path), text=text, overridden=overrides)
+    return parse_scene(data, source=str(path), text=text, overridden=overrides, trust=trust)
 
 
-def load_sweep(path) -> tuple[dict, dict[str, tuple]]:
+def load_sweep(path, *, trust=None) -> tuple[dict, dict[str, tuple]]:
     """Base scene dictionary and sweep axes of a scene file with a ``[sweep]`` table."""
-    spec = load_spec(path)
+    spec = load_spec(path, trust=trust)
     return spec.data, spec.sweep
 
 

@@ -244,10 +244,11 @@ def _worker_id() -> str:
     return f"{socket.gethostname()}:{os.getpid()}"
 
 
-def run_point(point: SweepPoint, frequencies: bool = True, pin: bool = True) -> PointResult:
+def run_point(point: SweepPoint, frequencies: bool = True, pin: bool = True, trust=None) -> PointResult:
     """Validate, solve and summarise one grid point (runs in a worker).
 
-    Never raises for a bad point: errors become ``PointResult(ok=False, error=...)``.
+    ``trust`` (a :class:`kedfem.trust.Trust`) is the code the point's scene may name. Never
+    raises for a bad point: errors become ``PointResult(ok=False, error=...)``.
     """
     import warnings
 
@@ -258,7 +259,7 @@ def run_point(point: SweepPoint, frequencies: bool = True, pin: bool = True) -> 
         pin_process()
     t0 = time.perf_counter()
     try:
-        scene = scene_from_dict(point.scene)
+        scene = scene_from_dict(point.scene, trust=trust)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ConvergenceWarning)
             warnings.simplefilter("ignore", InstabilityWarning)
@@ -531,7 +532,7 @@ def run_sweep(base: Mapping | None = None, axes: Mapping[str, Sequence] | None =
               points: Sequence[SweepPoint] | None = None, builder=None, scheduler: str = "processes", executor: cf.Executor | None = None, client=None,
               max_workers: int | None = None, progress: bool | None = None,
               frequencies: bool = True, done: Mapping[int, PointResult] | None = None,
-              on_result=None, retries: int = RETRIES) -> SweepResult:
+              on_result=None, retries: int = RETRIES, trust=None) -> SweepResult:
     """Solve a grid of scenes in parallel.
 
     Parameters
@@ -575,14 +576,21 @@ def run_sweep(base: Mapping | None = None, axes: Mapping[str, Sequence] | None =
         With ``scheduler="processes"``: times a point whose worker process
         died is solved again (alone in a fresh worker) before it is recorded
         as failed; the points that had not started go to a new pool.
+    trust : kedfem.trust.Trust, bool or targets, optional
+        Code the scenes may name besides catalogue mechanisms (:mod:`kedfem.trust`; ``True``
+        for a base your own code wrote). ``builder`` is trusted.
 
     Returns
     -------
     SweepResult
     """
     import functools
+
+    from ..trust import Trust
+    trust = Trust.of(trust, "run_sweep: trust")
     if builder is not None:
         base = _with_builder(base, builder)
+        trust = trust | Trust.of_reference(base["mechanism"]["name"])
     if points is None:
         points = make_points(base if base is not None else {}, axes or {})
         ax = tuple(_normalize_axes(axes).items())
@@ -596,7 +604,7 @@ def run_sweep(base: Mapping | None = None, axes: Mapping[str, Sequence] | None =
     workers = max_workers or os.cpu_count() or 1
     if isinstance(retries, bool) or not isinstance(retries, int) or retries < 0:
         raise InputError(f"sweep: retries must be an integer >= 0, got {retries!r}")
-    fn = functools.partial(run_point, frequencies=frequencies)
+    fn = functools.partial(run_point, frequencies=frequencies, trust=trust)
     done = {int(k): v for k, v in (done or {}).items()}
     todo = [p for p in points if p.index not in done]
     t0 = time.perf_counter()
@@ -611,7 +619,7 @@ def run_sweep(base: Mapping | None = None, axes: Mapping[str, Sequence] | None =
             where = "serial"
             out = {}
             for p in todo:
-                _record(out, run_point(p, frequencies=frequencies, pin=False), bar, on_result)
+                _record(out, run_point(p, frequencies=frequencies, pin=False, trust=trust), bar, on_result)
         elif scheduler == "processes":
             where = f"process pool ({workers} workers)"
             out = _run_pool(fn, todo, workers, bar, on_result, retries)
