@@ -73,6 +73,18 @@ _speed_arg = _number(float, lambda v: math.isfinite(v) and v != 0, "be a finite 
 _positive_float = _number(float, lambda v: math.isfinite(v) and v > 0, "be a finite number > 0")
 
 
+def _out_arg(s: str) -> str:
+    """An output folder: a name, not empty and not the working folder itself (it is replaced whole)."""
+    if not s.strip():
+        raise argparse.ArgumentTypeError("must name a folder, got an empty string")
+    if Path(s).resolve() == Path.cwd().resolve() or Path(s).resolve() == Path(Path(s).anchor or "/").resolve():
+        raise argparse.ArgumentTypeError(f"must name a folder of its own (it is replaced whole on every run), "
+                                         f"not the working folder or the root, got {s!r}")
+    if "\0" in s:
+        raise argparse.ArgumentTypeError("must be a path without NUL characters")
+    return s
+
+
 def _int_range(lo: int, hi: int):
     return _number(int, lambda v: lo <= v <= hi, f"lie in {lo} .. {hi}")
 
@@ -579,7 +591,8 @@ def build_parser() -> argparse.ArgumentParser:
     scene = argparse.ArgumentParser(add_help=False)
     scene.add_argument("scene", nargs="?", metavar="SCENE.toml | MECHANISM",
                        help="scene file or mechanism name (default: the built-in mould-oscillator scene)")
-    scene.add_argument("--out", metavar="DIR", help="output folder (default: the scene's output.dir, kedfem-out)")
+    scene.add_argument("--out", metavar="DIR", type=_out_arg,
+                       help="output folder (default: the scene's output.dir, kedfem-out)")
     scene.add_argument("--speed", type=_speed_arg, metavar="RPM", help="speed of the first drive [rev/min]")
     scene.add_argument("--rtol", type=_rtol_arg, metavar="TOL",
                        help="tolerance on every link's peak deflection and stress (default 1e-3)")
@@ -721,11 +734,24 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+class _StderrHandler(logging.StreamHandler):
+    """Writes to the ``sys.stderr`` of the moment (a handler bound to the stream of its first call
+    wrote into a closed one when ``main`` ran again with stderr redirected)."""
+
+    @property
+    def stream(self):
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, _value):
+        pass
+
+
 def _setup_logging(verbose: int) -> None:
     level = logging.WARNING if verbose <= 0 else logging.INFO if verbose == 1 else logging.DEBUG
     root = logging.getLogger("kedfem")
     if not any(getattr(h, "_kedfem_cli", False) for h in root.handlers):
-        h = logging.StreamHandler(sys.stderr)
+        h = _StderrHandler()
         h.setFormatter(logging.Formatter("kedfem: %(levelname)s: %(message)s"))
         h._kedfem_cli = True
         root.addHandler(h)

@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..checks import choice
 from ..errors import InputError
 from ..fe.effects import LINEAR_EFFECTS
 from ..model.mechanism import Mechanism
@@ -85,6 +86,14 @@ def scene_at(source, speed: float, *, effects: Sequence[str] | None = None, owne
     elif isinstance(source, Mechanism):
         sc = Scene(source, speed=float(speed), effects=LINEAR_EFFECTS, damping=ModalDamping(0.02))
     elif callable(source):
+        import inspect
+        try:
+            inspect.signature(source).bind(float(speed))
+        except TypeError as e:
+            raise InputError(f"{owner}: the builder must take one argument, the speed [rad/s] "
+                             f"(f(speed) -> Scene | Mechanism): {e}") from None
+        except ValueError:  # no signature (a built-in): call it and see
+            pass
         built = source(float(speed))
         if isinstance(built, Mechanism):  # at the speed asked, whatever the builder did with it
             sc = Scene(built, speed=float(speed), effects=LINEAR_EFFECTS, damping=ModalDamping(0.02))
@@ -407,8 +416,7 @@ def campbell(scene, speeds_rad_s, n_modes: int = 4, harmonics: int = 6, nodes: i
     n_modes = _int(owner, "n_modes", n_modes, 1)
     harmonics = _int(owner, "harmonics", harmonics, 1)
     nodes = _int(owner, "nodes", nodes, 3)
-    if method not in METHODS:
-        raise InputError(f"{owner}: method must be one of {', '.join(METHODS)}, got {method!r}")
+    choice(owner, "method", method, METHODS)
     freq = cycle_frequencies if method == "modal" else _solved_frequencies
     per_speed = []
     sc = None

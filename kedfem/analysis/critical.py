@@ -52,6 +52,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..checks import choice, flag
 from ..errors import AccuracyWarning, ConvergenceWarning, InputError, KedError, UnboundedResponseError
 from .campbell import RPM_PER_RAD_S, cycle_frequencies, linear_effects, scene_at
 from .scene import Scene, _int
@@ -342,8 +343,8 @@ def critical_speed(scene, lo: float, hi: float, *, rtol: float = 5e-3, kind: str
     KedError
         A solve fails, or its non-linear iteration does not converge.
     """
-    if kind not in KINDS:
-        raise InputError(f"critical_speed: kind must be one of {', '.join(KINDS)}, got {kind!r}")
+    choice("critical_speed", "kind", kind, KINDS)
+    linear = flag("critical_speed", "linear", linear)
     lo, hi = _number("lo", lo), _number("hi", hi)
     if lo >= hi:
         raise InputError(f"critical_speed: lo must be < hi, got lo = {lo:.6g} rad/s ({lo * RPM_PER_RAD_S:.6g} rpm) and "

@@ -138,6 +138,11 @@ def mesh_error(res, factor: int = 2) -> MeshError | None:
         model cannot be built or solved (logged).
     """
     from .pipeline import solve
+    from .results import PeriodicResult
+    if not isinstance(res, PeriodicResult):
+        raise InputError(f"mesh_error: res must be a result of kedfem.solve, got {type(res).__name__}")
+    if isinstance(factor, bool) or not isinstance(factor, int) or not 2 <= factor <= 8:
+        raise InputError(f"mesh_error: factor must be an integer in 2 .. 8, got {factor!r}")
     scene = res.scene
     mech = scene.mechanism
     flex = [lk for lk in mech.links.values() if not lk.rigid]

@@ -22,9 +22,10 @@ from ..fe.model import FEModel
 from ..fe.assembler import Assembler
 from ..fe.effects import check_effects
 from ..solvers.eigen import generalised_eigh
+from ..checks import flag, integer, real
 from ..errors import InputError
 from ..motion.kinematics import Motion, kinematics, kinematics_at, static_motion
-from ..model.mechanism import Mechanism
+from ..model.mechanism import Mechanism, require_mechanism
 
 __all__ = ["ModalResult", "GlobalMatrices", "Frequencies", "natural_frequencies", "global_matrices", "eig_frequencies",
            "frequencies_over_cycle", "modes_at"]
@@ -114,9 +115,10 @@ class Frequencies:
 
 
 def _motion_at(mechanism: Mechanism, crank_angle) -> Motion:
+    crank_angle = real("crank position", "crank_angle [rad]", crank_angle)
     if not mechanism.drives:
         return static_motion(mechanism)
-    return kinematics_at(mechanism, float(crank_angle))
+    return kinematics_at(mechanism, crank_angle)
 
 
 def eig_frequencies(M, K, n_modes: int | None = None, shapes: bool = False, name: str = "",
@@ -185,6 +187,8 @@ def natural_frequencies(mechanism: Mechanism, crank_angle: float = 0.0, n_modes:
     ModalResult
         ``frequencies`` [Hz] ascending, shape (n_modes,) or (steps, n_modes).
     """
+    require_mechanism(mechanism, "natural_frequencies")
+    modes = flag("natural_frequencies", "modes", modes)
     eff = check_effects(effects)
     if "geometric_nonlinearity" in eff:
         raise InputError("natural_frequencies: geometric_nonlinearity depends on the elastic response; "
@@ -239,6 +243,7 @@ def global_matrices(mechanism: Mechanism, crank_angle: float = 0.0, effects=(),
     -------
     GlobalMatrices
     """
+    require_mechanism(mechanism, "global_matrices")
     eff = check_effects(effects)
     model = FEModel(mechanism)
     motion = _motion_at(mechanism, crank_angle)
@@ -288,6 +293,7 @@ def modes_at(model: FEModel, motion: Motion, scene, U, V, node: int, n_modes: in
         Mass-normalised mode shapes.
     """
     idx = np.array([node])
+    n_modes = integer("mode_shapes", "n_modes", n_modes, 1)
     S, K = _about_state(model, motion, scene, U, V, idx)
     f, phi = eig_frequencies(S.M, K, min(n_modes, model.n_dof), shapes=True)
     return f[0], phi[0]
@@ -307,6 +313,7 @@ def frequencies_over_cycle(model: FEModel, motion: Motion, scene, U, V, n_modes:
         Arrays (nt, k) [Hz].
     """
     from ..solvers.periodic import state_matrix
+    n_modes = integer("frequencies", "n_modes", n_modes, 1)
     S, K = _about_state(model, motion, scene, U, V, idx)
     k = min(n_modes, model.n_dof)
     fm = eig_frequencies(S.M, K, k)

@@ -586,9 +586,11 @@ class _Run:
         elif self._stab_need and self.levels[-1].n < self._stab_need:
             why = ("in its error; not needed for a verdict this clear" if self.stable_beyond_doubt()
                    else "not in its error: give more elements")
+            by = (f"by at most a factor {1.0 + bound:.3g}" if math.isfinite(bound)
+                  else "by a factor too large to bound")
             note = (f"{self.levels[-1].n} time elements damp the modes up to {self._stab_f:.4g} Hz numerically "
-                    f"by more than {self.scene.rtol or 1e-3:.0e} per cycle: the spectral radius is too low, by "
-                    f"at most a factor {1.0 + bound:.3g} ({why}; resolved from {self._stab_need} elements)")
+                    f"by more than {self.scene.rtol or 1e-3:.0e} per cycle: the spectral radius is too low, "
+                    f"{by} ({why}; resolved from {self._stab_need} elements)")
         return Stability(rho[-1], err, verdict, self.scheme.name, self.levels[-1].n, note)
 
     def result(self, lv: _Level, n_out: int, error=None, shared_cache: bool = True,
@@ -682,6 +684,11 @@ class _Run:
             n_out = self.output_steps(n)
             if sc.estimate:
                 est = self.estimate(n_out, need)
+                if est is None:
+                    msg = (f"{sc.mech.name}: no error estimate: {n} time elements (steps given) have no coarser "
+                           f"level of {scheme.name} to compare with (the estimate needs steps >= "
+                           f"{scheme.refine(scheme.min_elements)}); leave steps out to meet rtol")
+                    warnings.warn(msg, AccuracyWarning, stacklevel=3)
         else:
             # double from a start whose second level resolves the relevant modes; the
             # estimate needs three levels (an observed rate) before it is believed

@@ -13,6 +13,7 @@ from ..model import elements as el
 from . import recovery
 from .modal import Frequencies, frequencies_over_cycle, modes_at
 from ..fe.model import FEModel
+from ..checks import choice, floats, integer, name, real
 from ..errors import InputError
 from ..motion.kinematics import Motion
 
@@ -140,6 +141,10 @@ log = logging.getLogger(__name__)
 
 #: least number of samples per cycle of the dense velocity the accelerations are derived from
 ACCELERATION_SAMPLES = 2048
+#: Most instants a result is resampled at in one call (a 0.001 degree crank step)
+MAX_RESAMPLE = 360_000
+#: Most natural frequencies per instant a result reports
+MAX_MODES = 100
 #: stations per element where peak stresses are sought (with a parabolic vertex between them)
 PEAK_STATIONS = 8
 
@@ -338,6 +343,7 @@ class PeriodicResult:
         their errors, fatigue, stability, iteration (no mesh check, no files)."""
         from .fatigue import fatigue_table
         from ..io.report import format_summary
+        n_modes = integer("summary", "n_modes", n_modes, 1, MAX_MODES)
         freqs = self.frequencies(n_modes, nodes=list(range(0, self.n, max(1, self.n // 180))))
         return format_summary(self, freqs, self.peaks(), stages={}, files=[], out_dir=None, source="python",
                               scene_time=self.timings.total, fatigue=fatigue_table(self), loads=self.loads())
@@ -410,7 +416,7 @@ class PeriodicResult:
 
     def _link(self, link):
         mech = self.model.mech
-        if link not in mech.links:
+        if not isinstance(link, str) or link not in mech.links:
             raise InputError(f"unknown link '{link}' (links: {', '.join(mech.links)})")
         lk = mech.links[link]
         if lk.rigid:
@@ -438,10 +444,10 @@ class PeriodicResult:
             Deflection [m] over the cycle.
         """
         lk = self._link(link)
-        if not (0.0 <= xi <= 1.0) or not math.isfinite(xi):
+        xi = real("deflection", "xi", xi)
+        if not (0.0 <= xi <= 1.0):
             raise InputError(f"deflection: xi must lie in [0, 1], got {xi!r}")
-        if relative_to not in ("frame", "chord"):
-            raise InputError(f"deflection: relative_to must be 'frame' or 'chord', got {relative_to!r}")
+        choice("deflection", "relative_to", relative_to, ("frame", "chord"))
         d = self._local(link)
         ne = lk.elements
         e = min(int(xi * ne), ne - 1)
@@ -535,10 +541,10 @@ class PeriodicResult:
 
     def _forces_at(self, link: str, xi: np.ndarray):
         """Bending moment and axial force (n, n_el, nx) at fractions ``xi`` (nx,) of every element."""
+        lk = self._link(link)
         key = ("forces", link, tuple(np.asarray(xi, float).tolist()))
         if key in self._cache:
             return self._cache[key]
-        lk = self._link(link)
         d = self._local(link)
         ne = lk.elements
         Le = lk.length / ne
@@ -699,8 +705,8 @@ class PeriodicResult:
         phi : ndarray, shape (N, k)
             Mass-normalised mode shapes (DOF order of ``dof_labels``).
         """
-        if not (0 <= node < self.n):
-            raise InputError(f"mode_shapes: node must lie in 0..{self.n - 1}, got {node}")
+        integer("mode_shapes", "node", node, 0, self.n - 1)
+        integer("mode_shapes", "n_modes", n_modes, 1, MAX_MODES)
         return modes_at(self.model, self.motion, self.scene, self.U, self.V, node, n_modes)
 
     def joint_displacement(self, joint: str, U: np.ndarray | None = None) -> np.ndarray:
@@ -713,8 +719,7 @@ class PeriodicResult:
         if forms is None:
             forms = self.model.entity_forms(self.motion)["P"]
             self._cache["forms"] = forms
-        if joint not in self.model.joint_point:
-            raise InputError(f"unknown joint '{joint}' (joints: {', '.join(self.model.joint_point)})")
+        name("joint_displacement", "joint", joint, self.model.joint_point)
         cols, C, *_rest = forms[self.model.joint_point[joint]]
         if not cols:
             return np.zeros((self.n, 2))
@@ -867,11 +872,13 @@ class PeriodicResult:
         period = self.scene.period
         if times is None:
             w = self.model.mech.drives[0].speed
-            ca = np.asarray(crank_angle, dtype=float)
+            ca = floats("resample", "crank_angle [rad]", crank_angle, max_size=MAX_RESAMPLE)
             times = (ca - self.crank_angle[0]) / w + self.t[0]
-        t = np.mod(np.atleast_1d(np.asarray(times, dtype=float)), period)
-        if t.ndim != 1 or not np.all(np.isfinite(t)):
-            raise InputError("resample: times / crank angles must be a 1-D array of finite numbers")
+        else:
+            times = floats("resample", "times [s]", times, max_size=MAX_RESAMPLE)
+        t = np.mod(times, period)
+        if not np.all(np.isfinite(t)):
+            raise InputError("resample: times / crank angles must be finite and of a size the cycle resolves")
         motion, U, V = self.sampler.at(t)
         out = dataclasses.replace(self, motion=motion, t=motion.t, crank_angle=motion.crank_angle, U=U, V=V)
         out._cache["source"] = self._cache.get("source", self)
@@ -941,11 +948,17 @@ class PeriodicResult:
 
     def _frequencies(self, n_modes: int = 4, nodes=None) -> Frequencies:
         """The body of :meth:`frequencies`."""
+        n_modes = integer("frequencies", "n_modes", n_modes, 1, MAX_MODES)
         if nodes is None:
             idx = None
             key = ("freq", n_modes)
         else:
-            idx = np.asarray(nodes)
+            if isinstance(nodes, (str, bytes, dict)):
+                raise InputError(f"frequencies: nodes must be time node indices, got {nodes!r}")
+            try:
+                idx = np.asarray(nodes)
+            except (TypeError, ValueError):
+                raise InputError(f"frequencies: nodes must be time node indices, got {nodes!r}") from None
             if idx.ndim != 1 or idx.size == 0 or not np.issubdtype(idx.dtype, np.integer) \
                     or idx.min() < 0 or idx.max() >= self.n:
                 raise InputError(f"frequencies: nodes must be time node indices in 0..{self.n - 1}, "

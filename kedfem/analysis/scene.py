@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..fe.effects import ModalDamping, Rayleigh, check_effects, chosen
+from ..checks import choice, flag
 from ..errors import InputError
 from ..model.mechanism import Mechanism
 
@@ -129,9 +130,14 @@ class Scene:
 
     def __post_init__(self):
         owner = "Scene"
-        if self.accuracy not in ACCURACY_PRESETS:
-            raise InputError(f"{owner}: accuracy must be one of {', '.join(ACCURACY_PRESETS)}, "
-                             f"got {self.accuracy!r}")
+        choice(owner, "accuracy", self.accuracy, tuple(ACCURACY_PRESETS))
+        choice(owner, "nonlinear_method", self.nonlinear_method, NONLINEAR_METHODS)
+        if not isinstance(self.name, str):
+            raise InputError(f"{owner}: name must be a string, got {type(self.name).__name__} {self.name!r:.60}")
+        if self.hold is not None:
+            choice(owner, "hold", self.hold, HOLDS)
+        for k in ("estimate", "stiff_split"):
+            flag(owner, k, getattr(self, k))
         for k, v in ACCURACY_PRESETS[self.accuracy].items():
             if getattr(self, k) is None:
                 object.__setattr__(self, k, v)
@@ -144,7 +150,7 @@ class Scene:
                                  f"{self.steps} (the cost grows linearly with it; a tolerance rtol "
                                  f"picks the number of elements a result needs)")
         from ..solvers import schemes
-        if self.method not in schemes.names():
+        if not isinstance(self.method, str) or self.method not in schemes.names():
             raise InputError(f"{owner}: method must be one of {', '.join(schemes.names())}, "
                              f"got {self.method!r}")
         rt = self.rtol

@@ -25,7 +25,7 @@ from ..errors import KedError
 from ..fe.assembler import Assembler
 from ..fe.effects import check_effects
 from ..fe.model import FEModel
-from ..model.mechanism import Mechanism
+from ..model.mechanism import Mechanism, require_mechanism
 from ..motion.kinematics import Motion
 from .modal import _motion_at
 
@@ -186,6 +186,7 @@ def static_response(mechanism: Mechanism, effects=("gravity", "loads"), crank_an
         The stiffness matrix is singular (a mechanism, i.e. a free
         rigid-body motion, in the structure).
     """
+    require_mechanism(mechanism, "static_response")
     eff = check_effects(effects)
     model = FEModel(mechanism)
     motion = _motion_at(mechanism, crank_angle)

@@ -536,7 +536,7 @@ class DofNumbering:
 
     def link_elements(self, link: str) -> slice:
         """Slice of the beam elements of a flexible link."""
-        if link not in self.beam.first:
+        if not isinstance(link, str) or link not in self.beam.first:
             kind = "rigid" if link in self.mech.links else "unknown"
             raise InputError(f"link '{link}' is {kind}: it has no beam elements "
                              f"(flexible links: {', '.join(self.beam.links)})")

@@ -34,7 +34,7 @@ from __future__ import annotations
 import logging
 
 from ..errors import InputError
-from ..model.mechanism import Mechanism
+from ..model.mechanism import Mechanism, require_mechanism
 from .dofs import BeamData, DofNumbering, Group, PointDof, RotDof
 from .maps import ConstraintMaps, GroupMap
 from .scatter import Scatter
@@ -78,6 +78,7 @@ class FEModel(DofNumbering, ConstraintMaps, Scatter):
     def __init__(self, mechanism: Mechanism, reduction=None, corotate: bool = True):
         from .reduction import CraigBampton
         self.corotate = bool(corotate)
+        require_mechanism(mechanism, "FE model")
         mechanism.validate()
         if reduction is not None and not isinstance(reduction, CraigBampton):
             raise InputError(f"reduction must be kf.CraigBampton(...) or None, got {reduction!r}")

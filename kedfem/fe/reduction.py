@@ -22,6 +22,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..model import elements as el
+from ..checks import flag, names
 from ..errors import InputError
 
 __all__ = ["CraigBampton", "link_matrices", "craig_bampton_basis"]
@@ -57,10 +58,9 @@ class CraigBampton:
         if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < 0:
             raise InputError(f"CraigBampton: modes must be an integer >= 0, got {m!r}")
         if self.links is not None:
-            if isinstance(self.links, str):
-                object.__setattr__(self, "links", (self.links,))
-            else:
-                object.__setattr__(self, "links", tuple(self.links))
+            object.__setattr__(self, "links", names("CraigBampton", "links", self.links))
+        object.__setattr__(self, "static_correction", flag("CraigBampton", "static_correction",
+                                                           self.static_correction))
 
     def applies_to(self, link) -> bool:
         """True if ``link`` (a :class:`kedfem.model.mechanism.Link`) is reduced."""

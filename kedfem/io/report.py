@@ -108,7 +108,9 @@ def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_di
         if err is not None:
             L.append(f"  time-discretisation error: {err.describe()}")
         else:
-            L.append("  time-discretisation error: not estimated (estimate = false)")
+            why = ("estimate = false" if not res.scene.estimate
+                   else f"{res.elements} time elements given: no coarser level to compare with")
+            L.append(f"  time-discretisation error: not estimated ({why})")
         if mesh is not None:
             L.append(f"  mesh error (not in the +- columns): {mesh.describe()}")
             for e in mesh.links:

@@ -74,6 +74,7 @@ import itertools
 import logging
 import math
 import re
+import stat
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -88,7 +89,7 @@ from ..catalogue import SOLVER_KEYS, Preset
 from ..catalogue import parameters as mechanism_parameters
 from ..errors import InputError, KedError, did_you_mean
 from ..fe.effects import ModalDamping, Rayleigh, check_effects
-from ..model.mechanism import Mechanism
+from ..model.mechanism import MAX_ELEMENTS as _MODEL_MAX_ELEMENTS, Mechanism
 from ..trust import Trust, UntrustedCodeError
 
 __all__ = ["SceneFileError", "UntrustedSceneError", "Outputs", "Preset", "SceneSpec", "load_scene", "load_sweep",
@@ -101,8 +102,8 @@ log = logging.getLogger(__name__)
 #: rad/s per rev/min
 RPM = 2.0 * math.pi / 60.0
 
-#: Largest number of frame elements per link (cost grows with the cube of the DOF count).
-MAX_ELEMENTS = 200
+#: Largest number of frame elements per link (the model's own cap, :data:`kedfem.model.mechanism.MAX_ELEMENTS`).
+MAX_ELEMENTS = _MODEL_MAX_ELEMENTS
 #: Largest ``solver.max_iter`` (each iteration is a full periodic solve).
 MAX_ITER = 1_000
 #: Largest number of exported mode shapes.
@@ -111,6 +112,8 @@ MAX_MODES = 24
 MAX_SWEEP_POINTS = 10_000
 #: Largest scene file [bytes] (scene files are a few hundred bytes).
 MAX_FILE_BYTES = 1_000_000
+#: Deepest nesting of tables and arrays in a scene file (the layout needs 3: [sweep] axes of arrays).
+MAX_DEPTH = 8
 
 
 class SceneFileError(InputError):
@@ -685,7 +688,11 @@ def read_scene_file(path) -> tuple[dict, str]:
     p = Path(path)
     src = str(path)
     try:
-        size = p.stat().st_size
+        st = p.stat()
+        if not stat.S_ISREG(st.st_mode):  # a FIFO or a device would block or never end
+            raise SceneFileError("cannot read the scene file: not a regular file (a folder, pipe or device); "
+                                 "give a .toml file", path=src)
+        size = st.st_size
         if size > MAX_FILE_BYTES:
             raise SceneFileError(f"file is {size} bytes; scene files are limited to {MAX_FILE_BYTES}", path=src)
         text = p.read_bytes().decode("utf-8")
@@ -700,7 +707,25 @@ def read_scene_file(path) -> tuple[dict, str]:
     except tomllib.TOMLDecodeError as e:
         m = re.search(r"at line (\d+)", str(e))
         raise SceneFileError(f"invalid TOML: {e}", path=src, line=int(m.group(1)) if m else None) from None
+    except RecursionError:
+        raise SceneFileError(f"invalid scene: arrays or tables nested deeper than Python's parser can follow "
+                             f"(scene files nest at most {MAX_DEPTH} levels)", path=src) from None
+    depth = _depth(data)
+    if depth > MAX_DEPTH:
+        raise SceneFileError(f"invalid scene: values nested more than {MAX_DEPTH} levels deep (scene files "
+                             f"nest at most {MAX_DEPTH})", path=src)
     return data, text
+
+
+def _depth(v, level: int = 0) -> int:
+    """Nesting depth of tables and arrays (stops counting past :data:`MAX_DEPTH`)."""
+    if level > MAX_DEPTH:
+        return level
+    if isinstance(v, dict):
+        return max((_depth(x, level + 1) for x in v.values()), default=level + 1)
+    if isinstance(v, list):
+        return max((_depth(x, level + 1) for x in v), default=level + 1)
+    return level
 
 
 def load_scene(path, overrides: Mapping[str, Any] | None = None, *, trust=None) -> tuple[Scene, Outputs]:

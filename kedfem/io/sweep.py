@@ -62,19 +62,46 @@ def _init_worker(parent: int | None = None) -> None:
         _watch_parent(parent)
 
 
+def _proc_state(pid: int) -> tuple[str, str] | None:
+    """(state letter, start time) of a process from ``/proc`` (Linux), or None where there is no ``/proc``."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            text = f.read().decode("ascii", "replace")
+    except FileNotFoundError:
+        return ("X", "")  # gone
+    except OSError:
+        return None
+    rest = text[text.rfind(")") + 2:].split()  # the command name may hold spaces and parentheses
+    return (rest[0], rest[19]) if len(rest) > 19 else None
+
+
+def _parent_gone(parent: int, started: str | None) -> bool:
+    """The sweep's main process has ended: gone, a zombie its own parent has not reaped yet (it
+    holds no pipes open and will never shut the pool down), or its pid reused by another process."""
+    st = _proc_state(parent)
+    if st is not None:
+        state, start = st
+        return state in ("Z", "X", "x") or (started is not None and start != started)
+    try:  # no /proc: a signal 0 tells a live (or zombie) process from a missing one
+        os.kill(parent, 0)
+    except ProcessLookupError:
+        return True
+    except PermissionError:  # pragma: no cover - another user's process took the pid
+        return True
+    return False
+
+
 def _watch_parent(parent: int) -> None:
     """End this worker when the sweep's main process is gone (killed with SIGKILL, it cannot
     shut its pool down; the workers would run on, orphaned, to the end of their points)."""
     import threading
+    st = _proc_state(parent)
+    started = st[1] if st is not None else None
 
     def watch():
         while True:
             time.sleep(WATCHDOG_PERIOD)
-            try:
-                os.kill(parent, 0)
-            except ProcessLookupError:
-                os._exit(3)
-            except PermissionError:  # pragma: no cover - another user's process took the pid
+            if _parent_gone(parent, started):
                 os._exit(3)
 
     threading.Thread(target=watch, name="kedfem-parent-watchdog", daemon=True).start()
@@ -105,8 +132,13 @@ class SweepPoint:
 
 def _normalize_axes(axes: Mapping[str, Sequence]) -> dict[str, tuple]:
     """Axes as ``{str: tuple}``; NumPy arrays and scalars become plain Python values."""
+    if not isinstance(axes, Mapping):
+        raise InputError(f"sweep: axes must be a mapping of dotted keys to lists of values, got "
+                         f"{type(axes).__name__}")
     ax = {}
     for k, v in axes.items():
+        if not isinstance(k, str) or not k:
+            raise InputError(f"sweep: an axis is named by a dotted scene key (a string), got {k!r}")
         if isinstance(v, (str, bytes, Mapping)) or not isinstance(v, (Sequence, np.ndarray, range)) \
                 or len(v) == 0:
             raise InputError(f"sweep: axis {k!r} must be a non-empty list of values, got {v!r}")
@@ -170,23 +202,38 @@ def parse_axis(text: str) -> tuple[str, tuple]:
     def scalar(s):
         s = s.strip()
         try:
-            return tomllib.loads(f"v = {s}")["v"]
-        except tomllib.TOMLDecodeError:
+            v = tomllib.loads(f"v = {s}")["v"]
+        except (tomllib.TOMLDecodeError, RecursionError):
             if s and all(c.isalnum() or c in "_-+." for c in s):
                 return s
             raise InputError(f"sweep axis {key!r}: cannot read value {s!r}") from None
+        if isinstance(v, float) and not math.isfinite(v):
+            raise InputError(f"sweep axis {key!r}: values must be finite, got {s!r}")
+        if isinstance(v, (list, dict)):
+            raise InputError(f"sweep axis {key!r}: a value must be a number, a string or true/false, got {s!r}")
+        return v
 
+    from .scenefile import MAX_SWEEP_POINTS
     parts = vals.split(":")
     if len(parts) == 3:
         a, b, num = scalar(parts[0]), scalar(parts[1]), scalar(parts[2])
         if not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in (a, b)) or \
                 isinstance(num, bool) or not isinstance(num, int) or num < 1:
             raise InputError(f"sweep axis {key!r}: START:STOP:NUM needs two numbers and an integer NUM >= 1")
+        if num > MAX_SWEEP_POINTS:
+            raise InputError(f"sweep axis {key!r}: NUM = {num} exceeds the {MAX_SWEEP_POINTS} points a sweep may "
+                             "have (kedfem.io.scenefile.MAX_SWEEP_POINTS)")
         values = tuple(float(x) for x in np.linspace(float(a), float(b), num))
+        if not all(math.isfinite(v) for v in values):
+            raise InputError(f"sweep axis {key!r}: START:STOP:NUM gives values beyond floating point")
         if all(isinstance(x, int) for x in (a, b)) and all(v.is_integer() for v in values):
             values = tuple(int(v) for v in values)
         return key, values
-    values = tuple(scalar(s) for s in vals.split(",") if s.strip())
+    items = [x for x in vals.split(",") if x.strip()]
+    if len(items) > MAX_SWEEP_POINTS:
+        raise InputError(f"sweep axis {key!r}: {len(items)} values exceed the {MAX_SWEEP_POINTS} points a sweep may "
+                         "have (kedfem.io.scenefile.MAX_SWEEP_POINTS)")
+    values = tuple(scalar(x) for x in items)
     if not values:
         raise InputError(f"sweep axis {key!r}: no values")
     return key, values
@@ -275,9 +322,13 @@ def run_point(point: SweepPoint, frequencies: bool = True, pin: bool = True, tru
                            bool(res.error.met) if res.error is not None else None)
     except KedError as e:
         msg = str(e)
-    except Exception as e:  # noqa: BLE001 - one bad point must not kill the sweep
+    except KeyboardInterrupt:
+        raise
+    except BaseException as e:  # noqa: BLE001 - one bad point (even a sys.exit in its builder) must not end the sweep
         log.debug("sweep point %d failed", point.index, exc_info=True)
-        msg = f"{type(e).__name__}: {e} ({traceback.extract_tb(e.__traceback__)[-1].name})"
+        where = traceback.extract_tb(e.__traceback__)
+        what = f"it called sys.exit({e.code!r})" if isinstance(e, SystemExit) else f"{type(e).__name__}: {e}"
+        msg = f"{what} ({where[-1].name})" if where else what
     return PointResult(point.index, point.params, False, " ".join(msg.split()), time.perf_counter() - t0,
                        worker=_worker_id())
 
@@ -315,8 +366,9 @@ def point_rows(p: PointResult, keys: Sequence[str]) -> list[tuple]:
 
 
 def csv_cells(row: tuple) -> list:
-    """A table row as CSV cells (floats with full precision, NaN as an empty cell)."""
-    return [("" if math.isnan(v) else repr(float(v))) if isinstance(v, float) else v for v in row]
+    """A table row as CSV cells (floats with full precision; NaN and infinities, values that are
+    not known or beyond floating point, as an empty cell)."""
+    return [(repr(float(v)) if math.isfinite(v) else "") if isinstance(v, float) else v for v in row]
 
 
 @dataclass(frozen=True)
@@ -586,16 +638,30 @@ def run_sweep(base: Mapping | None = None, axes: Mapping[str, Sequence] | None =
     """
     import functools
 
+    from ..checks import flag
     from ..trust import Trust
+    if not isinstance(scheduler, str):
+        raise InputError(f"sweep: scheduler must be 'processes', 'serial', 'local' or a Dask address "
+                         f"'tcp://host:port', got {type(scheduler).__name__} {scheduler!r:.60}")
+    frequencies = flag("sweep", "frequencies", frequencies)
     trust = Trust.of(trust, "run_sweep: trust")
     if builder is not None:
         base = _with_builder(base, builder)
         trust = trust | Trust.of_reference(base["mechanism"]["name"])
     if points is None:
+        if axes is not None and not isinstance(axes, Mapping):
+            raise InputError(f"sweep: axes must be a mapping of dotted keys to lists of values, got "
+                             f"{type(axes).__name__}")
         points = make_points(base if base is not None else {}, axes or {})
         ax = tuple(_normalize_axes(axes).items())
     else:
+        if isinstance(points, (str, bytes, Mapping)) or not isinstance(points, (Sequence, np.ndarray)):
+            raise InputError(f"sweep: points must be a sequence of SweepPoint, got {type(points).__name__}")
         points = list(points)
+        bad = [p for p in points if not isinstance(p, SweepPoint)]
+        if bad:
+            raise InputError(f"sweep: points must be SweepPoint objects (kedfem.io.sweep.make_points), got "
+                             f"{type(bad[0]).__name__} {bad[0]!r}")
         keys = list(dict.fromkeys(k for p in points for k, _ in p.params))
         ax = tuple((k, tuple(dict.fromkeys(_cell(dict(p.params).get(k)) for p in points))) for k in keys)
     if max_workers is not None and (isinstance(max_workers, bool) or not isinstance(max_workers, int)

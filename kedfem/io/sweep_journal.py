@@ -77,20 +77,30 @@ class SweepJournal:
         """
         if not self.path.is_file():
             return {}
-        text = self.path.read_text()
-        first, _, body = text.partition("\n")
+        raw = self.path.read_bytes()
+        first_raw, _, body_raw = raw.partition(b"\n")
+        first = first_raw.decode("utf-8", errors="replace")
         if not first.startswith(_TAG):
             raise InputError(f"sweep --resume: {self.path} is not a kedfem partial sweep table")
         if first[len(_TAG):].strip() != self.signature:
             raise InputError(f"sweep --resume: {self.path} is the partial table of another sweep (a different "
                              f"scene or axes); remove it or resume that sweep")
-        complete = body if body.endswith("\n") else body[:body.rfind("\n") + 1]
-        rows = list(csv.reader(io.StringIO(complete)))
+        complete = body_raw if body_raw.endswith(b"\n") else body_raw[:body_raw.rfind(b"\n") + 1]
+        # line by line: a line that is not UTF-8 (a damaged disk block) costs its point, not the sweep
+        lines, bad = [], set()
+        for line in complete.splitlines(keepends=True):
+            try:
+                lines.append(line.decode("utf-8"))
+            except UnicodeDecodeError:
+                head = line.split(b",", 1)[0]
+                if head.isdigit():
+                    bad.add(int(head))
+                log.warning("sweep --resume: %s: a line that is not UTF-8 text is dropped", self.path)
+        rows = list(csv.reader(io.StringIO("".join(lines))))
         if not rows or tuple(rows[0]) != self.names:
             return {}
         by_index = {p.index: p for p in points}
         groups: dict[int, list] = {}
-        bad: set[int] = set()
         for r in rows[1:]:
             try:
                 i = int(r[0])
@@ -99,7 +109,14 @@ class SweepJournal:
             if len(r) != len(self.names):
                 bad.add(i)
                 continue
-            groups.setdefault(i, []).append(dict(zip(self.names, r)))
+            row = dict(zip(self.names, r))
+            g = groups.setdefault(i, [])
+            same = [x for x in g if x["link"] == row["link"]]
+            if same:  # a line written twice: the same point once; a conflicting copy: solve it again
+                if any(x != row for x in same):
+                    bad.add(i)
+                continue
+            g.append(row)
         out = {}
         for i, g in groups.items():
             p = by_index.get(i)
@@ -109,7 +126,10 @@ class SweepJournal:
             if any(str(_cell(pv.get(k))) != g[0][k] for k in self.keys):
                 raise InputError(f"sweep --resume: point {i} of {self.path} has other parameters than this "
                                  f"sweep's point {i}")
-            r = self._point(p, g)
+            try:
+                r = self._point(p, g)
+            except (ValueError, KeyError):  # a damaged number: solve the point again
+                r = None
             if r is not None:
                 out[i] = r
         return out

@@ -5,30 +5,24 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
+from ..checks import flag, names, real
 from ..errors import InputError
 
-__all__ = ["Material", "Section"]
+__all__ = ["Material", "Section", "MAX_LENGTH", "flag", "names"]
 
-
-def real(owner: str, name: str, value, *, positive: bool = False, nonneg: bool = False) -> float:
-    """``value`` as a finite float, or an :class:`InputError` naming ``owner`` and ``name``."""
-    if isinstance(value, bool):
-        raise InputError(f"{owner}: {name} must be a number, got {value!r}")
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{owner}: {name} must be a number, got {value!r}") from None
-    if not math.isfinite(v):
-        raise InputError(f"{owner}: {name} must be finite, got {value!r}")
-    if positive and v <= 0.0:
-        raise InputError(f"{owner}: {name} must be > 0, got {value!r}")
-    if nonneg and v < 0.0:
-        raise InputError(f"{owner}: {name} must be >= 0, got {value!r}")
-    return v
+#: Largest coordinate, length or section dimension [m] a model may hold (a planar linkage of
+#: a thousand kilometres is a unit mistake; squares and products of lengths then stay finite).
+MAX_LENGTH = 1e6
 
 
 def _positive(owner: str, name: str, value) -> float:
     return real(owner, name, value, positive=True)
+
+
+def _dimension(owner: str, name: str, value) -> float:
+    return real(owner, name, value, positive=True, limit=MAX_LENGTH, unit=" m")
 
 
 @dataclass(frozen=True)
@@ -108,30 +102,32 @@ class Section:
     kappa: float = 5.0 / 6.0
 
     def __post_init__(self):
-        object.__setattr__(self, "A", _positive("Section", "A", self.A))
-        object.__setattr__(self, "I", _positive("Section", "I", self.I))
+        object.__setattr__(self, "A", real("Section", "A", self.A, positive=True, limit=MAX_LENGTH**2,
+                                           unit=" m^2"))
+        object.__setattr__(self, "I", real("Section", "I", self.I, positive=True, limit=MAX_LENGTH**4,
+                                           unit=" m^4"))
         if self.c is not None:
-            object.__setattr__(self, "c", _positive("Section", "c", self.c))
+            object.__setattr__(self, "c", _dimension("Section", "c", self.c))
         object.__setattr__(self, "kappa", _positive("Section", "kappa", self.kappa))
 
     @classmethod
     def rectangle(cls, b: float, h: float) -> "Section":
         """Solid rectangle: width ``b`` out of plane, height ``h`` in plane [m]."""
-        b = _positive("Section.rectangle", "b", b)
-        h = _positive("Section.rectangle", "h", h)
+        b = _dimension("Section.rectangle", "b", b)
+        h = _dimension("Section.rectangle", "h", h)
         return cls(A=b * h, I=b * h**3 / 12.0, c=h / 2.0, kappa=5.0 / 6.0)
 
     @classmethod
     def circle(cls, d: float) -> "Section":
         """Solid circle of diameter ``d`` [m]."""
-        d = _positive("Section.circle", "d", d)
+        d = _dimension("Section.circle", "d", d)
         return cls(A=math.pi * d**2 / 4.0, I=math.pi * d**4 / 64.0, c=d / 2.0, kappa=0.9)
 
     @classmethod
     def tube(cls, d: float, t: float) -> "Section":
         """Circular tube of outer diameter ``d`` and wall thickness ``t`` [m]."""
-        d = _positive("Section.tube", "d", d)
-        t = _positive("Section.tube", "t", t)
+        d = _dimension("Section.tube", "d", d)
+        t = _dimension("Section.tube", "t", t)
         if 2 * t >= d:
             raise InputError(f"Section.tube: wall thickness t={t} must be < d/2={d / 2}")
         di = d - 2 * t

@@ -22,12 +22,14 @@ import networkx as nx
 import numpy as np
 
 from ..errors import InputError
-from .materials import Material, Section, real
+from .materials import MAX_LENGTH, Material, Section, flag, names, real
 from . import placement
 from ..errors import LengthWarning
 
 __all__ = [
     "Mechanism",
+    "require_mechanism",
+    "MAX_ELEMENTS",
     "Joint",
     "Link",
     "Body",
@@ -40,20 +42,52 @@ __all__ = [
 ]
 
 GROUND = "ground"
+#: Largest number of frame elements per link (the cost grows with the cube of the DOF count;
+#: 200 elements of 3 DOFs already make a 600-DOF link).
+MAX_ELEMENTS = 200
 #: Relative difference between a link's stated ``length=`` and its coordinates that warns
 LENGTH_RTOL = 1e-6
 
 log = logging.getLogger(__name__)
 
 
-def _vec2(owner: str, name: str, value) -> tuple[float, float]:
+def _vec2(owner: str, name: str, value, limit: float | None = MAX_LENGTH, unit: str = " m") -> tuple[float, float]:
+    """Two finite numbers (x, y); with ``limit``, each of magnitude at most ``limit``."""
+    if isinstance(value, (str, bytes, dict)):
+        raise InputError(f"{owner}: {name} must be a pair of numbers, got {value!r}")
     try:
         arr = np.asarray(value, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise InputError(f"{owner}: {name} must be a pair of numbers, got {value!r}") from None
     if arr.shape != (2,) or not np.all(np.isfinite(arr)):
-        raise InputError(f"{owner}: {name} must be two finite numbers (x, y) [m], got {value!r}")
+        raise InputError(f"{owner}: {name} must be two finite numbers (x, y){unit and ' [' + unit.strip() + ']'}, "
+                         f"got {value!r}")
+    if limit is not None and np.max(np.abs(arr)) > limit:
+        raise InputError(f"{owner}: {name} = ({arr[0]:.6g}, {arr[1]:.6g}){unit} exceeds the largest magnitude a "
+                         f"model may hold, {limit:g}{unit} (a unit mistake?)")
     return (float(arr[0]), float(arr[1]))
+
+
+def require_mechanism(obj, owner: str = "kedfem") -> "Mechanism":
+    """``obj`` if it is a :class:`Mechanism`, else an :class:`InputError` naming ``owner``."""
+    if not isinstance(obj, Mechanism):
+        raise InputError(f"{owner}: expected a kedfem.Mechanism, got {type(obj).__name__} {_short(obj)}")
+    return obj
+
+
+def _short(v) -> str:
+    r = repr(v)
+    return r if len(r) <= 60 else r[:57] + "..."
+
+
+def _unit(owner: str, name: str, value) -> tuple[float, float]:
+    """A direction, normalised (scaled first, so that huge or subnormal components normalise exactly)."""
+    ax = np.asarray(_vec2(owner, name, value, limit=None, unit=""))
+    big = float(np.max(np.abs(ax)))
+    if big == 0.0:
+        raise InputError(f"{owner}: {name} must be a non-zero vector")
+    ax = ax / big
+    return tuple(float(v) for v in ax / float(np.hypot(*ax)))
 
 
 _number = real  # the finite-number check of materials.py
@@ -289,8 +323,9 @@ class Mechanism:
         clamped : bool
             Weld the members meeting here to the frame (a cantilever root).
         """
-        return self._new_joint(Joint(name, _vec2(f"ground '{name}'", "at", at), "ground",
-                                     welded=bool(clamped)))
+        owner = f"ground '{name}'"
+        return self._new_joint(Joint(name, _vec2(owner, "at", at), "ground",
+                                     welded=flag(owner, "clamped", clamped)))
 
     def joint(self, name: str, at, welded=False) -> Joint:
         """Add a joint between members: revolute, or rigid when ``welded=True``.
@@ -310,7 +345,8 @@ class Mechanism:
         """
         owner = f"joint '{name}'"
         if not isinstance(welded, (bool, np.bool_)):
-            if isinstance(welded, str) or not all(isinstance(x, str) for x in welded):
+            if isinstance(welded, str) or not isinstance(welded, (tuple, list)) or \
+                    not all(isinstance(x, str) for x in welded):
                 raise InputError(f"{owner}: welded must be True/False or a sequence of member names, "
                                  f"got {welded!r}")
             welded = tuple(welded)
@@ -354,9 +390,9 @@ class Mechanism:
             at any point of it (no need to split the link there).
         """
         owner = f"slider '{name}'"
-        if rotation not in ("free", "locked"):
+        if not isinstance(rotation, str) or rotation not in ("free", "locked"):
             raise InputError(f"{owner}: rotation must be 'free' or 'locked', got {rotation!r}")
-        if slide not in ("free", "locked"):
+        if not isinstance(slide, str) or slide not in ("free", "locked"):
             raise InputError(f"{owner}: slide must be 'free' or 'locked', got {slide!r}")
         if on is None and slide != "free":
             raise InputError(f"{owner}: slide='locked' applies to a slider on a member (on=); "
@@ -365,14 +401,7 @@ class Mechanism:
             raise InputError(f"{owner}: on must be the name of a link or body, got {on!r}")
         if axis is None and on is None:
             axis = (1.0, 0.0)
-        ax = None
-        if axis is not None:
-            ax = np.asarray(_vec2(owner, "axis", axis))
-            big = float(np.max(np.abs(ax)))
-            if big == 0.0:
-                raise InputError(f"{owner}: axis must be a non-zero vector")
-            ax = ax / big                      # scaled first: a subnormal axis normalises exactly
-            ax = tuple(float(v) for v in ax / float(np.hypot(*ax)))
+        ax = _unit(owner, "axis", axis) if axis is not None else None
         kind = "slider" if on is None else "slot"
         return self._new_joint(Joint(name, _vec2(owner, "at", at), kind, axis=ax, on=on,
                                      rotation=rotation, slide=slide))
@@ -414,6 +443,8 @@ class Mechanism:
             raise InputError(f"{self.name}: component name '{name}' is used twice")
 
     def _check_joint(self, owner: str, jname: str) -> Joint:
+        if not isinstance(jname, str):
+            raise InputError(f"{owner}: a joint is named by a string, got {type(jname).__name__} {jname!r}")
         if jname not in self.joints:
             known = ", ".join(sorted(self.joints)) or "none yet"
             raise InputError(f"{owner} names unknown joint '{jname}' (defined joints: {known})")
@@ -477,13 +508,17 @@ class Mechanism:
         if length <= 1e-12:
             raise InputError(f"{owner}: zero length (joints '{a}' and '{b}' coincide at {ja.at})")
         if stated is not None:
-            stated = _number(owner, "length", stated, positive=True)
+            stated = _number(owner, "length", stated, positive=True, limit=MAX_LENGTH, unit=" m")
         if isinstance(ends, str):
             ends = (ends, ends)
-        ends = tuple(ends)
-        if len(ends) != 2 or any(e not in ("pin", "clamp") for e in ends):
+        if not isinstance(ends, (tuple, list)) or len(ends) != 2 or \
+                any(not isinstance(e, str) or e not in ("pin", "clamp") for e in ends):
             raise InputError(f"{owner}: ends must be two of 'pin'/'clamp', got {ends!r}")
-        if mass_matrix not in ("consistent", "lumped"):
+        ends = tuple(ends)
+        rigid = flag(owner, "rigid", rigid)
+        timoshenko = flag(owner, "timoshenko", timoshenko)
+        kinematic = flag(owner, "kinematic", kinematic)
+        if not isinstance(mass_matrix, str) or mass_matrix not in ("consistent", "lumped"):
             raise InputError(f"{owner}: mass_matrix must be 'consistent' or 'lumped', got {mass_matrix!r}")
         if material is not None and not isinstance(material, Material):
             raise InputError(f"{owner}: material must be a kedfem.Material, got {material!r}")
@@ -506,8 +541,11 @@ class Mechanism:
                 raise InputError(f"{owner}: a flexible link needs material= and section= (or rigid=True)")
             if mass is not None or J is not None:
                 raise InputError(f"{owner}: mass=/J= apply to rigid links only")
-            if isinstance(elements, bool) or not isinstance(elements, (int, np.integer)) or elements < 1:
-                raise InputError(f"{owner}: elements must be an integer >= 1, got {elements!r}")
+            if isinstance(elements, bool) or not isinstance(elements, (int, np.integer)) or \
+                    not 1 <= elements <= MAX_ELEMENTS:
+                raise InputError(f"{owner}: elements must be an integer in 1 .. {MAX_ELEMENTS} "
+                                 f"(kedfem.model.mechanism.MAX_ELEMENTS: the cost grows with the cube of the "
+                                 f"DOF count), got {elements!r}")
             n_el = int(elements)
             m = material.rho * section.A * length
             j = m * length**2 / 12.0
@@ -544,7 +582,7 @@ class Mechanism:
             raise InputError(f"{owner}: give each anchor as (joint, length) or (joint, length, name), "
                              f"got {spec!r}")
         joint, pos = self._position(owner, spec[0])
-        length = _number(owner, f"the length from '{joint}'", spec[1], positive=True)
+        length = _number(owner, f"the length from '{joint}'", spec[1], positive=True, limit=MAX_LENGTH, unit=" m")
         label = f"{spec[2]} {length:.6g} m" if len(spec) == 3 else None
         return joint, pos, length, label
 
@@ -670,9 +708,7 @@ class Mechanism:
         """
         self._check_component_name("body", name)
         owner = f"body '{name}'"
-        if isinstance(joints, str):
-            joints = (joints,)
-        joints = tuple(joints)
+        joints = names(owner, "joints", joints)
         if not joints:
             raise InputError(f"{owner}: needs at least one attachment joint")
         if len(set(joints)) != len(joints):
@@ -693,11 +729,12 @@ class Mechanism:
         """Add a lumped mass [kg] (and rotary inertia ``J`` [kg m^2]) at a joint."""
         owner = f"point mass at '{joint}'"
         jt = self._check_joint(owner, joint)
+        mass = _number(owner, "mass", mass, nonneg=True)
+        J = _number(owner, "J", J, nonneg=True)
         if J and jt.kind == "slot" and jt.rotation == "free":
             raise InputError(f"{owner}: a block in a slot turns with the member '{jt.on}', not with the "
                              "members pinned to it; give the block's rotary inertia to that member (J=0 here)")
-        pm = PointMass(joint, _number(owner, "mass", mass, nonneg=True),
-                       _number(owner, "J", J, nonneg=True))
+        pm = PointMass(joint, mass, J)
         self.point_masses.append(pm)
         return pm
 
@@ -730,11 +767,7 @@ class Mechanism:
             self._check_joint(owner, b)
             if b == a:
                 raise InputError(f"{owner}: both ends at joint '{a}'")
-        ax = np.asarray(_vec2(owner, "axis", axis))
-        nrm = float(np.hypot(*ax))
-        if nrm == 0.0:
-            raise InputError(f"{owner}: axis must be a non-zero vector")
-        s = Spring(name, a, b, _number(owner, "k", k, nonneg=True), tuple((ax / nrm).tolist()),
+        s = Spring(name, a, b, _number(owner, "k", k, nonneg=True), _unit(owner, "axis", axis),
                    _number(owner, "k3", k3), _number(owner, "preload", preload))
         self.springs[name] = s
         self.graph.add_edge(a, b if b is not None else a, key=name, kind="spring", component=s)
@@ -753,10 +786,15 @@ class Mechanism:
         for mem in (member, other):
             if mem is None:
                 continue
+            if not isinstance(mem, str):
+                raise InputError(f"{owner}: a member is named by a string, got {type(mem).__name__} {mem!r}")
             if mem not in self.links and mem not in self.bodies:
                 raise InputError(f"{owner} names unknown member '{mem}'")
             if joint not in self._member_joints(mem):
                 raise InputError(f"{owner}: member '{mem}' is not attached at joint '{joint}'")
+        if other is not None and other == member:
+            raise InputError(f"{owner}: ties member '{member}' to itself; give another member at '{joint}' or "
+                             "other=None for the frame")
         if other is None and not self.joints[joint].grounded:
             raise InputError(f"{owner}: other=None ties to the frame, but joint '{joint}' is not a ground joint")
         ts = TorsionalSpring(name, joint, member, other, _number(owner, "k", k, nonneg=True),
@@ -779,7 +817,7 @@ class Mechanism:
             Stiffness of the drive shaft [N m/rad] tying the member to the motor.
         """
         owner = f"drive on '{member}'"
-        if member not in self.links and member not in self.bodies:
+        if not isinstance(member, str) or (member not in self.links and member not in self.bodies):
             raise InputError(f"{owner}: unknown link or body '{member}'")
         if member in self.links and not self.links[member].kinematic:
             raise InputError(f"{owner}: '{member}' has kinematic=False and cannot be driven")
@@ -808,10 +846,12 @@ class Mechanism:
     def load(self, name: str, joint: str, force) -> Load:
         """Add a constant external force [N] (global components) at a joint."""
         owner = f"load '{name}'"
+        if not isinstance(name, str) or not name:
+            raise InputError(f"{self.name}: load name must be a non-empty string, got {name!r}")
         if name in self.loads or name in self.frictions:
             raise InputError(f"{self.name}: load name '{name}' is used twice")
         self._check_joint(owner, joint)
-        ld = Load(name, joint, _vec2(owner, "force", force))
+        ld = Load(name, joint, _vec2(owner, "force", force, limit=None, unit=" N"))
         self.loads[name] = ld
         return ld
 
@@ -842,10 +882,12 @@ class Mechanism:
             Velocity used: rigid-body only, or rigid plus elastic (iterated).
         """
         owner = f"friction '{name}'"
+        if not isinstance(name, str) or not name:
+            raise InputError(f"{self.name}: load name must be a non-empty string, got {name!r}")
         if name in self.loads or name in self.frictions:
             raise InputError(f"{self.name}: load name '{name}' is used twice")
         jt = self._check_joint(owner, joint)
-        if follows not in ("rigid", "total"):
+        if not isinstance(follows, str) or follows not in ("rigid", "total"):
             raise InputError(f"{owner}: follows must be 'rigid' or 'total', got {follows!r}")
         slot = jt.kind == "slot"
         if slot and axis is not None:
@@ -857,13 +899,7 @@ class Mechanism:
         if not slot and axis is None:
             raise InputError(f"{owner}: give the axis= the friction acts along (it may be left out only "
                              "at a slot joint)")
-        unit = None
-        if not slot:
-            ax = np.asarray(_vec2(owner, "axis", axis))
-            nrm = float(np.hypot(*ax))
-            if nrm == 0.0:
-                raise InputError(f"{owner}: axis must be a non-zero vector")
-            unit = tuple((ax / nrm).tolist())
+        unit = None if slot else _unit(owner, "axis", axis)
         fr = Friction(name, joint, _number(owner, "force", force, nonneg=True), unit,
                       _number(owner, "reference_speed", reference_speed),
                       _number(owner, "smoothing", smoothing, positive=True), follows)
@@ -872,7 +908,7 @@ class Mechanism:
 
     def set_gravity(self, g) -> None:
         """Set the gravity vector [m/s^2] used by the ``gravity`` effect."""
-        self.gravity = _vec2(self.name, "gravity", g)
+        self.gravity = _vec2(self.name, "gravity", g, limit=None, unit=" m/s^2")
 
     # ------------------------------------------------------------------ queries
     def _member_joints(self, member: str) -> tuple[str, ...]:

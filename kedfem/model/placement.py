@@ -46,7 +46,8 @@ import math
 import numpy as np
 
 from ..errors import InputError, LengthWarning
-from .materials import real
+from ..checks import real
+from .materials import MAX_LENGTH
 
 __all__ = ["BRANCHES", "LINE_BRANCHES", "at_angle", "circle_intersection",
            "line_intersection"]
@@ -70,7 +71,7 @@ def _point(owner: str, name: str, value) -> np.ndarray:
 
 
 def _length(owner: str, name: str, value) -> float:
-    return real(owner, name, value, positive=True)
+    return real(owner, name, value, positive=True, limit=MAX_LENGTH, unit=" m")
 
 
 def at_angle(origin, length: float, angle: float) -> tuple[float, float]:
@@ -97,8 +98,8 @@ def at_angle(origin, length: float, angle: float) -> tuple[float, float]:
 
 
 def _side(branch: str, allowed, owner: str) -> str:
-    if branch not in allowed:
-        raise InputError(f"{owner}: branch must be one of {', '.join(repr(b) for b in allowed)}, got {branch!r}")
+    if not isinstance(branch, str) or branch not in allowed:
+        raise InputError(f"{owner}: branch must be one of {', '.join(repr(b) for b in allowed)}, got {branch!r:.60}")
     return branch
 
 

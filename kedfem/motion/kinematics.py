@@ -23,13 +23,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError, KinematicsError, MobilityError
-from ..model.mechanism import GROUND, Mechanism
+from ..model.materials import real
+from ..model.mechanism import GROUND, Mechanism, require_mechanism
 
 __all__ = ["Motion", "Cycle", "kinematics", "kinematics_at", "static_motion", "slot_direction"]
 
 log = logging.getLogger(__name__)
 
 _S = np.array([[0.0, -1.0], [1.0, 0.0]])
+#: Most instants of one kinematics call (a 0.005 degree crank step; the solver's own limit is far below)
+MAX_NODES = 100_000
 
 
 def _rot(theta):
@@ -171,6 +174,7 @@ class _LoopModel:
     """Compiled loop-closure model of a mechanism (internal)."""
 
     def __init__(self, mech: Mechanism):
+        require_mechanism(mech, "kinematics")
         mech.validate()
         self.mech = mech
         self.joint_names = tuple(mech.joints)
@@ -649,7 +653,12 @@ class Cycle:
         Motion
         """
         period = self.period
-        t = np.asarray(times, dtype=float)
+        try:
+            t = np.asarray(times, dtype=float)
+        except (TypeError, ValueError, OverflowError):
+            raise InputError(f"kinematics: times must be an array of instants [s], got {times!r:.80}") from None
+        if t.size > MAX_NODES:
+            raise InputError(f"kinematics: at most {MAX_NODES} instants, got {t.size}")
         if t.ndim != 1 or t.size == 0 or not np.all(np.isfinite(t)) \
                 or t.min() < 0.0 or t.max() > period * (1 + 1e-12):
             raise InputError(f"kinematics: times must be a non-empty 1-D array of instants in "
@@ -857,8 +866,8 @@ def kinematics(mechanism: Mechanism, steps: int = 360, *, times=None) -> Motion:
         The linkage cannot complete the cycle (names the loop and crank angle).
     """
     if times is None:
-        if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 3:
-            raise InputError(f"kinematics: steps must be an integer >= 3, got {steps!r}")
+        if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or not 3 <= steps <= MAX_NODES:
+            raise InputError(f"kinematics: steps must be an integer in 3 .. {MAX_NODES}, got {steps!r}")
     cyc = Cycle(mechanism)
     if times is None:
         times = np.arange(steps) * (cyc.period / steps)
@@ -885,6 +894,7 @@ def kinematics_at(mechanism: Mechanism, crank_angle: float) -> Motion:
         With a single time node.
     """
     model = _LoopModel(mechanism)
+    crank_angle = real("kinematics_at", "crank_angle [rad]", crank_angle)
     if not mechanism.drives:
         return static_motion(mechanism)
     model.check_mobility()

@@ -8,7 +8,8 @@ import numpy as np
 from scipy.optimize import brentq
 
 from ..errors import InputError, KinematicsError
-from ..model.mechanism import Mechanism
+from ..checks import floats, name
+from ..model.mechanism import Mechanism, require_mechanism
 from .kinematics import Cycle
 
 __all__ = ["Stroke", "stroke"]
@@ -73,14 +74,14 @@ def stroke(mechanism: Mechanism, joint: str, axis=None) -> Stroke:
     KinematicsError
         The joint does not reverse exactly twice per cycle along ``axis``.
     """
-    if joint not in mechanism.joints:
-        raise InputError(f"stroke: unknown joint '{joint}' (joints: {', '.join(mechanism.joints)})")
+    require_mechanism(mechanism, "stroke")
+    name("stroke", "joint", joint, mechanism.joints)
     jt = mechanism.joints[joint]
     if axis is None:
         if jt.kind != "slider":
             raise InputError(f"stroke: joint '{joint}' is not on a fixed slider; give the axis=")
         axis = jt.axis
-    ax = np.asarray(axis, dtype=float).reshape(-1)
+    ax = floats("stroke", "axis", axis).reshape(-1)
     if ax.shape != (2,) or not np.all(np.isfinite(ax)) or not np.hypot(*ax) > 0:
         raise InputError(f"stroke: axis must be a non-zero pair of numbers, got {axis!r}")
     ax = ax / np.hypot(*ax)

@@ -47,6 +47,7 @@ from functools import lru_cache
 import numpy as np
 from scipy.linalg.blas import daxpy as _daxpy
 
+from ..checks import choice, flag, integer, real
 from ..errors import InputError
 
 __all__ = [
@@ -122,9 +123,7 @@ def pade_degree(delta: float) -> int:
     int
         ``q >= 1``.
     """
-    delta = float(delta)
-    if not (np.isfinite(delta) and delta > 0.0):
-        raise InputError(f"delta must be a positive finite number, got {delta!r}")
+    delta = real("expm", "delta", delta, positive=True)
     target = math.log10(delta) + 1e-12
     for q in range(1, 40):
         if math.floor(math.log10(pade_error_bound(q))) <= target:
@@ -538,7 +537,10 @@ def _fix_triangular(E, B, tri, j, step):
 
 
 def _as_stack(A: np.ndarray, name: str = "A") -> tuple[np.ndarray, tuple]:
-    A = np.asarray(A)
+    try:
+        A = np.asarray(A)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a numeric array of shape (..., m, m)") from None
     if A.ndim < 2 or A.shape[-1] != A.shape[-2]:
         raise InputError(f"{name} must have shape (..., m, m), got {A.shape}")
     if not np.issubdtype(A.dtype, np.number) or np.issubdtype(A.dtype, np.bool_):
@@ -595,14 +597,13 @@ def expm(A: np.ndarray, delta: float = 1e-15, balance: bool = True, *,
     recomputed exactly at every squaring.
     """
     A_st, shape = _as_stack(A)
-    if approximant not in APPROXIMANTS:
-        raise InputError(f"unknown approximant {approximant!r}; valid: {', '.join(APPROXIMANTS)}")
+    return_info = flag("expm", "return_info", return_info)
+    choice("expm", "approximant", approximant, APPROXIMANTS)
+    balance = flag("expm", "balance", balance)
     if degree is None:
         degree = pade_degree(delta) if approximant == "pade" else "auto"
-    elif degree != "auto":
-        degree = int(degree)
-        if degree < 1:
-            raise InputError(f"degree must be >= 1, got {degree}")
+    elif not (isinstance(degree, str) and degree == "auto"):
+        degree = integer("expm", "degree", degree, 1, 30)
     pade_degree(delta)  # validates delta
     if balance and A_st.shape[-1] > 1:
         Bst, d = _balance(A_st)
