@@ -1,7 +1,7 @@
 """kedfem: finite-element Kineto-ElastoDynamics of planar elastic linkages."""
 
 from .errors import (AccuracyWarning, ConvergenceWarning, EffectWarning, InputError, InstabilityWarning, KedError,
-                     KinematicsError, LengthWarning, MobilityError, OptionalDependencyError, PlausibilityWarning, ResonanceError,
+                     KinematicsError, LengthWarning, MobilityError, NonlinearSolveError, OptionalDependencyError, PlausibilityWarning, ResonanceError,
                      SingularMassError, UnboundedResponseError)
 from .model.materials import Material, Section
 from .model.mechanism import Mechanism
@@ -26,3 +26,5 @@ from .analysis.mesh_check import MeshError, mesh_error
 from .analysis.campbell import CampbellResult, Crossing, campbell
 from .analysis.critical import CriticalSpeed, critical_speed
 from .io.design_plots import StabilityMap, stability_map
+from .analysis.continuation import Bifurcation, Branch, BranchPoint, continuation
+from .io.branch_files import write as write_branch

@@ -53,6 +53,21 @@ class UnboundedResponseError(KedError):
         self.elements = elements
 
 
+class NonlinearSolveError(KedError):
+    """No periodic response of a non-linear scene was found: neither Newton's method from the linear
+    response nor a continuation from a speed where it converges reached the scene.
+
+    No result is returned (a diverged iterate is no answer). Attributes: ``highest`` (float or
+    None), the highest parameter value [rad/s for speed] at which the response converged;
+    ``tried`` (str), what was tried.
+    """
+
+    def __init__(self, message: str, highest: float | None = None, tried: str = ""):
+        super().__init__(message)
+        self.highest = highest
+        self.tried = tried
+
+
 class SingularMassError(KedError):
     """The mass matrix is singular or indefinite (massless or negative-mass DOFs)."""
 

@@ -114,8 +114,8 @@ def test_divergence_is_detected():
 
 def test_nonlinear_input_validation():
     M, C, K, Q, T, terms = duffing_problem(1.0, 0.2, 1.0, 0.5, 0.3, 0.8, n=16)
-    with pytest.raises(InputError, match="fixed-point, relaxation, anderson"):
-        nonlinear.solve(M, C, K, Q, T, terms, method="newton")
+    with pytest.raises(InputError, match="newton, fixed-point, relaxation, anderson"):
+        nonlinear.solve(M, C, K, Q, T, terms, method="bisection")
     with pytest.raises(InputError, match="dK with shape"):
         nonlinear.solve(M, C, K, Q, T, lambda U, V: (None, None, np.ones((3, 1, 1)), None))
     with pytest.raises(InputError, match="non-finite dQ"):

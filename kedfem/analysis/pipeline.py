@@ -34,9 +34,9 @@ from ..fe.damping import ModalDamping
 from ..errors import AccuracyWarning, EffectWarning, InputError
 from ..motion.kinematics import Cycle, kinematics
 from ..fe.modal_damping import DampingField
-from ..solvers.nonlinear import fixed_point, fixed_point_or_anderson
 from ..solvers.threads import one_blas_thread
 from .plausibility import check_passive_links, check_result
+from .problem import PeriodicProblem, constant_or_sampled
 from .results import PeriodicResult, Sampler, Stability, Timings, stability_verdict
 from .scene import MAX_STEPS, Scene
 
@@ -44,8 +44,6 @@ __all__ = ["solve", "assemble_scene", "START_ELEMENTS", "OUTPUT_STEPS"]
 
 log = logging.getLogger(__name__)
 
-#: above this many bytes for the (n, N, N) matrices of a linear scene, assemble chunk by chunk
-STREAM_BYTES = 400e6
 #: least number of output instants per cycle (1 degree of crank)
 OUTPUT_STEPS = 360
 #: tolerance of the non-linear iteration on the levels of a tolerance-driven solve,
@@ -76,44 +74,7 @@ FIELD_INSTANTS = 256
 AXIAL_SHARE = 0.9
 
 
-class _Chunks:
-    """Lazy per-chunk assembly for the streaming periodic solver (M, C, K, Q callables)."""
-
-    def __init__(self, asm: Assembler):
-        self.asm = asm
-        self._idx = None
-        self._terms = None
-
-    def _get(self, idx):
-        idx = np.asarray(idx)
-        if self._idx is None or self._idx.shape != idx.shape or not np.array_equal(self._idx, idx):
-            self._terms = self.asm.system(idx)
-            self._idx = idx.copy()
-        return self._terms
-
-    def M(self, idx):
-        return self._get(idx).M
-
-    def C(self, idx):
-        return self._get(idx).C
-
-    def K(self, idx):
-        return self._get(idx).K
-
-    def Q(self, idx):
-        return self._get(idx).Q
-
-
-def _constant_or_sampled(X: np.ndarray) -> np.ndarray:
-    """``X[0]`` when every instant holds exactly the same matrix, else ``X``.
-
-    A time-invariant scene (every body translating, or none moving) then takes
-    the solvers' constant-matrix path: one exponential (or one stage
-    factorisation) instead of one per element.
-    """
-    if X.ndim == 3 and X.shape[0] > 1 and np.array_equal(X, np.broadcast_to(X[0], X.shape)):
-        return X[0]
-    return X
+_constant_or_sampled = constant_or_sampled  # (tests use the old name)
 
 
 def assemble_scene(scene: Scene, steps: int | None = None):
@@ -153,7 +114,7 @@ class _Level:
     caught: list
 
 
-def solve(scene: Scene, progress: bool | None = None) -> PeriodicResult:
+def solve(scene: Scene, progress: bool | None = None, *, start=None) -> PeriodicResult:
     """Periodic steady-state elastic response of a scene, with its error estimate.
 
     Assembles exactly the scene's effects at the instants the time scheme
@@ -170,14 +131,24 @@ def solve(scene: Scene, progress: bool | None = None) -> PeriodicResult:
     progress : bool, optional
         A progress bar on stderr (tqdm) for solves longer than about 2 s: the levels solved, their
         time elements and error estimate. Default: only on a terminal.
+    start : PeriodicResult, optional
+        A response of the same mechanism (at another speed, on other time elements) the
+        non-linear iteration starts from, read at the same fractions of the cycle (a
+        neighbour on a branch: :func:`kedfem.continuation` uses it). Default: the linear
+        response.
 
     Returns
     -------
     PeriodicResult
-        With ``res.error`` (:class:`~kedfem.analysis.accuracy.ErrorEstimate`).
+        With ``res.error`` (:class:`~kedfem.analysis.accuracy.ErrorEstimate`) and ``res.path``
+        (how a non-linear response was reached when Newton's method from the linear response
+        did not converge).
 
     Raises
     ------
+    NonlinearSolveError
+        A non-linear scene whose periodic response was not found (Newton's method and the
+        continuation in speed failed): no result, no stability verdict of an iterate.
     KinematicsError, MobilityError
         The linkage cannot run through its cycle.
     ResonanceError
@@ -197,11 +168,17 @@ def solve(scene: Scene, progress: bool | None = None) -> PeriodicResult:
     """
     if not isinstance(scene, Scene):
         raise InputError(f"solve: expected a kf.Scene, got {type(scene).__name__}")
+    if start is not None:
+        if not isinstance(start, PeriodicResult) or start.sampler is None:
+            raise InputError(f"solve: start must be a result of kedfem.solve, got {type(start).__name__}")
+        if start.model.n_dof != FEModel(scene.mech, reduction=scene.reduction).n_dof:
+            raise InputError(f"solve: start has {start.model.n_dof} elastic DOFs, the scene {scene.mech.name!r} "
+                             "another number: give a response of the same mechanism")
     # one BLAS thread: the batched small-matrix work (eigh of the modal
     # damping, products, the periodic solve) ran 10-40x slower on OpenBLAS's
     # threads whenever the other core was busy (benchmarks/peers.py)
     with one_blas_thread():
-        return _Run(scene, progress).run()
+        return _Run(scene, progress, start=start).run()
 
 
 def undamped(scene: Scene) -> bool:
@@ -217,6 +194,15 @@ def undamped(scene: Scene) -> bool:
     return True
 
 
+def phase_sample(discrete, t, period: float):
+    """A discrete solution read at instants ``t`` of a cycle ``period`` long, at the same fractions
+    of its own cycle (velocities rescaled to the new cycle): a response at another speed as a
+    start."""
+    r = discrete.period / period
+    U, V = discrete.at(np.asarray(t, dtype=float) * r)
+    return U, V * r
+
+
 def _coarser(scheme, n: int) -> int | None:
     """The level whose refinement is ``n`` (None below the scheme's minimum)."""
     for m in range(max(scheme.min_elements, n // 2 - 1), n):
@@ -228,7 +214,7 @@ def _coarser(scheme, n: int) -> int | None:
 class _Run:
     """The levels of one solve and their observables on common output instants."""
 
-    def __init__(self, scene: Scene, progress: bool | None = None):
+    def __init__(self, scene: Scene, progress: bool | None = None, start=None):
         self.t0 = time.perf_counter()
         self.scene = scene
         self.progress = progress
@@ -250,6 +236,9 @@ class _Run:
         self._stab_loss = None  # n -> the most the scheme lowers ln(rho) on n elements
         self._read: dict = {}  # (level index, output instants) -> (the level, what reading it computed)
         self._continue = None
+        self.path = ""       # how the non-linear response was reached, when not directly
+        self.start = start   # a neighbour's response the first level starts from
+        self.highest = None  # the highest speed the continuation reached, when it failed
         self._grids: dict[int, tuple] = {}
         self._obs: dict[tuple[int, int], accuracy.Observables] = {}
         self.t_setup = time.perf_counter() - self.t0
@@ -277,60 +266,91 @@ class _Run:
         sc, scheme = self.scene, self.scheme
         eps = sc.eps if eps is None else max(eps, sc.eps)
         self._continue = None
-        period = sc.period
-        ta = time.perf_counter()
-        ti = scheme.instants(n, period)
-        motion = self.cycle.at(ti)
-        tb = time.perf_counter()
+        ti = scheme.instants(n, sc.period)
         field = self.damping_field() if ti.size >= FIELD_INSTANTS else None
-        asm = Assembler(self.model, motion, sc.effects, damping=sc.damping, damping_field=field)
-        N = self.model.n_dof
-        opts = {"delta": sc.delta} if sc.delta is not None else {}
-        if self.stiff is not None:
-            opts["stiff"] = self.stiff
-        state = asm.state_dependent
-        caught: list = []
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            if not state and 3 * ti.size * N * N * 8 > STREAM_BYTES:
-                ch = _Chunks(asm)
-                tc = time.perf_counter()
-                d = scheme.solve(ch.M, ch.C, ch.K, ch.Q, period, n, **opts)
-                converged, iters, hist = True, 1, ()
-            else:
-                terms = asm.system()
-                tc = time.perf_counter()
-                if state:
-                    def G(U, V, it):
-                        dC, dK, dQ = asm.state_terms(U, V)
-                        dd = scheme.solve(terms.M, terms.C, terms.K, terms.Q, period, n,
-                                          dC=dC, dK=dK, dQ=dQ, **opts)
-                        return (dd,) + dd.instant_states()
-
-                    # warm start from the previous level only if its iteration converged: a coarse
-                    # level's diverged iterate (|mu| = 585 at 24 elements) sent every finer level
-                    # off to overflow, where each converges from the linear start
-                    prev = self.levels[-1] if self.levels else None
-                    x0 = prev.discrete.at(ti) if prev is not None and prev.converged else None
-                    d, hist, converged, method = fixed_point_or_anderson(
-                        G, ti.size, N, period, eps=eps, max_iter=sc.max_iter, method=sc.nonlinear_method,
-                        x0=x0)
-                    iters, hist = len(hist), tuple(float(h) for h in hist)
-                    if eps > sc.eps:  # what finish() needs to go on to the scene's eps
-                        self._continue = (G, ti.size, N, period, method)
-                else:
-                    M, C, K = (_constant_or_sampled(X) for X in (terms.M, terms.C, terms.K))
-                    d = scheme.solve(M, C, K, terms.Q, period, n, **opts)
-                    converged, iters, hist = True, 1, ()
+        prob = PeriodicProblem(sc, self.model, self.cycle, scheme, n, damping_field=field, stiff=self.stiff)
+        tc = time.perf_counter()
+        # warm start from the previous level only if its iteration converged: a coarse
+        # level's diverged iterate (|mu| = 585 at 24 elements) sent every finer level
+        # off to overflow, where each converges from the linear start
+        prev = self.levels[-1] if self.levels else None
+        x0 = prev.discrete.at(ti) if prob.state and prev is not None and prev.converged else None
+        if prob.state and x0 is None and self.start is not None:
+            x0 = phase_sample(self.start.sampler.discrete, ti, sc.period)
+        out = prob.solve(x0, eps=eps, max_iter=sc.max_iter, method=sc.nonlinear_method)
+        if prob.state and not out.converged and sc.nonlinear_method == "newton":
+            out = self.homotopy(prob, out, eps)
+        if prob.state and eps > sc.eps:  # what finish() needs to go on to the scene's eps
+            self._continue = (prob, out)
         td = time.perf_counter()
-        lv = _Level(n, d, bool(converged), int(iters), hist, tb - ta, tc - tb, td - tc, list(caught))
+        d = out.discrete
+        lv = _Level(n, d, out.converged, out.iterations, out.history, prob.kinematics, prob.assembly, td - tc,
+                    out.caught)
         log.info("%s: level n=%d (%s) %d iteration(s) rho=%.4g %.3f s", sc.mech.name, n, scheme.name,
-                 iters, d.spectral_radius, td - ta)
+                 out.iterations, d.spectral_radius, prob.kinematics + prob.assembly + td - tc)
         self.levels.append(lv)
         if self._bar is not None:
             self._bar.update(1)
-            self._bar.set_postfix_str(f"{n} time elements, {td - ta:.1f} s", refresh=True)
+            self._bar.set_postfix_str(f"{n} time elements, {prob.kinematics + prob.assembly + td - tc:.1f} s",
+                                      refresh=True)
         return lv
+
+    def homotopy(self, prob, failed, eps: float):
+        """The level's response by continuation in speed when Newton from the linear response (or
+        from the coarser level) does not converge (:func:`kedfem.analysis.branch.reach`).
+
+        Returns the :class:`~kedfem.analysis.problem.Solved` at the scene's speed (the failed
+        one when the continuation does not get there; :attr:`path` says what happened).
+        """
+        from .branch import Family, reach
+        from ..errors import NonlinearSolveError
+        sc = self.scene
+        w = sc.mech.drives[0].speed
+        fam = Family(lambda s: dataclasses.replace(sc, speed=s), prob.n, self.scheme)
+        fam._cache[float(w)] = prob
+        t0 = time.perf_counter()
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                r = reach(fam, w, eps=eps)
+            except NonlinearSolveError as e:
+                self.path = ("Newton's method from the linear response did not converge; " + str(e))
+                self.highest = e.highest
+                log.warning("%s: %s", sc.mech.name, self.path)
+                return failed
+        rpm = 60.0 / (2 * math.pi)
+        folds = (f", through folds at {', '.join(f'{abs(f) * rpm:.1f}' for f in r.folds)} rpm" if r.folds else "")
+        self.path = (f"reached by continuation in speed from {r.start * rpm:.4g} rpm ({r.steps} steps{folds}; "
+                     f"Newton from the linear response did not converge at {abs(w) * rpm:.4g} rpm)")
+        log.info("%s: %s, %d solves, %.1f s", sc.mech.name, self.path, r.solves, time.perf_counter() - t0)
+        d = r.point.discrete
+        from .problem import Solved
+        return Solved(d, True, failed.iterations + r.solves, failed.history, "newton", list(caught))
+
+    def failure(self, final: _Level):
+        """The named error of a non-linear solve that found no periodic response (no result is
+        returned: its last iterate is no answer, and neither is a stability verdict from it)."""
+        from ..errors import NonlinearSolveError
+        sc = self.scene
+        rpm = 60.0 / (2 * math.pi)
+        w = abs(sc.mech.drives[0].speed)
+        if sc.nonlinear_method == "newton":
+            tried = (f"Newton's method with a line search from the linear response on {final.n} time elements, "
+                     f"then continuation in speed")
+            what = self.path or "the continuation did not reach the scene's speed"
+        else:
+            tried = (f"the {sc.nonlinear_method} iteration on {'/'.join(str(lv.n) for lv in self.levels)} "
+                     "time elements (and Anderson acceleration)")
+            what = f"it did not converge within max_iter = {sc.max_iter} linear solves"
+        highest = (f"; the highest speed where it converged: {self.highest * rpm:.6g} rpm"
+                   if self.highest is not None else "")
+        nxt = ("kf.continuation(scene, lo, hi) (kedfem continuation SCENE --speeds LO:HI) follows the response "
+               "over speed and says where it ends or loses its stability")
+        if sc.nonlinear_method != "newton":
+            nxt = "nonlinear_method='newton' (the default) continues in speed by itself; " + nxt
+        return NonlinearSolveError(
+            f"{sc.mech.name}: no periodic response found at {w * rpm:.6g} rpm: {what}{highest}. Tried: {tried}. "
+            f"Next: {nxt}", highest=self.highest, tried=tried)
 
     def forecast_elements(self, need: int) -> int:
         """The time elements the refinement is likely to end on (see :meth:`forecast`)."""
@@ -358,18 +378,13 @@ class _Run:
         if self._continue is None:
             return
         sc = self.scene
-        G, n_i, N, period, method = self._continue
+        prob, out = self._continue
         lv = self.levels[-1]
         t0 = time.perf_counter()
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            d, hist, converged, _msg = fixed_point(
-                G, n_i, N, period, eps=sc.eps, max_iter=sc.max_iter,
-                method=method, x0=lv.discrete.instant_states())
+        out = prob.polish(out, eps=sc.eps, max_iter=sc.max_iter)
         self.levels[-1] = dataclasses.replace(
-            lv, discrete=d, converged=bool(converged), iterations=lv.iterations + len(hist),
-            history=lv.history + tuple(float(h) for h in hist),
-            solve=lv.solve + time.perf_counter() - t0, caught=list(caught))
+            lv, discrete=out.discrete, converged=out.converged, iterations=out.iterations,
+            history=out.history, solve=lv.solve + time.perf_counter() - t0, caught=out.caught)
         i = len(self.levels) - 1
         self._obs = {k: v for k, v in self._obs.items() if k[0] != i}
         self._continue = None
@@ -714,6 +729,8 @@ class _Run:
                     if prev.converged:
                         break
                     failed += 1
+                if failed and sc.nonlinear_method == "newton":
+                    break  # Newton and the continuation in speed failed: finer levels will not do better
                 if failed >= 3 or (failed >= 2 and self.levels[-2].n >= need):
                     # refining the time discretisation does not make a non-linear iteration
                     # converge: two resolved levels, or three, that fail end the refinement
@@ -747,6 +764,8 @@ class _Run:
             if est is None and len(self.levels) >= 2:
                 est = self.estimate(n_out, need)
         final = self.levels[-1]
+        if not final.converged:
+            raise self.failure(final)
         for w in final.caught:  # warnings of the result's own solve (coarse levels' are dropped)
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
         if est is not None and sc.rtol is not None and not est.met:
@@ -767,6 +786,7 @@ class _Run:
                        f"convergence rate observed over three levels")
             warnings.warn(f"{sc.mech.name}: {why}, with {how}", AccuracyWarning, stacklevel=3)
         res = self.result(final, n_out, error=est, stability=self.stability(est))
+        object.__setattr__(res, "path", self.path)
         check_result(res)
         total = time.perf_counter() - self.t0
         kin = self.t_setup + sum(lv.kinematics for lv in self.levels)

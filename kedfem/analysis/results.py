@@ -300,7 +300,14 @@ class PeriodicResult:
     sampler : Sampler or None
         Reads the response at any instant of the cycle (:meth:`resample`).
     stability : Stability or None
-        Spectral radius with its estimated error and the verdict.
+        Spectral radius with its estimated error and the verdict. For a non-linear scene the
+        multipliers are those of the orbit: the linearisation (the consistent tangent of the
+        state-dependent effects) about the converged response.
+    path : str
+        How a non-linear response was reached when not directly from the linear response
+        ("reached by continuation in speed from 175 rpm ..."); empty otherwise.
+    periods : int
+        Drive cycles per period of the response (1; 2 for a period-doubled response).
     """
 
     scene: object
@@ -324,6 +331,8 @@ class PeriodicResult:
     error: object = None
     sampler: object = field(default=None, repr=False, compare=False)
     stability: Stability | None = None
+    path: str = ""
+    periods: int = 1
     # not an init field: dataclasses.replace(res, U=...) gets an empty cache, not the old
     # result's deflections and stresses
     _cache: dict = field(default_factory=dict, init=False, repr=False, compare=False)

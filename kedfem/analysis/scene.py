@@ -73,9 +73,13 @@ class Scene:
         fraction; default: from ``accuracy``).
     max_iter : int
         Largest number of linear solves of the non-linear iteration.
-    nonlinear_method : {"fixed-point", "relaxation", "anderson"}
-        Iteration scheme (the paper's plain fixed point, under-relaxation, or
-        Anderson acceleration).
+    nonlinear_method : {"newton", "fixed-point", "relaxation", "anderson"}
+        Iteration for the state-dependent effects. ``"newton"`` (default): Newton's method with a
+        line search on the periodic problem (the effects' terms are the consistent tangent), and
+        when it does not converge from the linear response, continuation in speed from a speed
+        where it does (:func:`kedfem.solve`); ``"fixed-point"``: the paper's plain iteration
+        (falling back to Anderson acceleration when it diverges); ``"relaxation"``,
+        ``"anderson"``.
     delta : float, optional
         Accuracy asked from each matrix exponential (default: from
         ``accuracy``; the presets' ``None`` matches it to the hold).
@@ -117,7 +121,7 @@ class Scene:
     speed: float | None = None
     eps: float | None = None
     max_iter: int = 50
-    nonlinear_method: str = "fixed-point"
+    nonlinear_method: str = "newton"
     delta: float | None = None
     reduction: object = None
     name: str = ""

@@ -138,8 +138,10 @@ def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_di
         L.append(f"Floquet stability   spectral radius {rho:.6g} -> {'stable' if res.stable else 'UNSTABLE'}")
     if sc.state_dependent:
         last = f", last change {res.history[-1]:.2e}" if res.history else ""
-        L.append(f"iteration           {res.iterations} linear solves, converged: "
+        L.append(f"iteration           {res.iterations} linear solves ({sc.nonlinear_method}), converged: "
                  f"{'yes' if res.converged else 'NO'} (eps {sc.eps:g}{last})")
+        if res.path:
+            L.append(f"                    {res.path}")
     else:
         L.append("iteration           none needed (linear scene): 1 periodic solve")
     L.append(f"residual            {res.residual:.3e} (relative, block-cyclic system)")

@@ -56,7 +56,8 @@ from .periodic import (MAX_CONDITION, MIN_NODES, _check_mass, _run_parallel, _So
                        default_workers, solve_cyclic)
 from .threads import one_blas_thread
 
-__all__ = ["Tableau", "tableau", "SCHEMES", "solve", "CollocationSolution", "dense", "instants"]
+__all__ = ["Tableau", "tableau", "SCHEMES", "solve", "CollocationSolution", "dense", "instants", "residual",
+           "stiffly_accurate"]
 
 log = logging.getLogger(__name__)
 
@@ -412,6 +413,68 @@ class _Elements:
         V = v0 + h * np.einsum("jl,kln->kjn", tab.A, acc)
         U = u0 + h * tab.c[None, :, None] * v0 + h * h * np.einsum("jl,kln->kjn", tab.A2, acc)
         return U, V
+
+
+def stiffly_accurate(name: str) -> bool:
+    """The scheme's last stage is the element end (``c_s = 1``: Radau IIA), so the stage states
+    alone determine the discrete solution and its residual (:func:`residual`)."""
+    return bool(tableau(name).c[-1] == 1.0)
+
+
+def residual(M, C, K, Q, U, V, period: float, scheme: str = "radau3", edges=None) -> np.ndarray:
+    """Residual of the collocation equations at given stage states (a stiffly accurate scheme).
+
+    The element start state is the last stage of the element before (periodically), the stage
+    accelerations follow from the stage velocities, ``a = A^-1 (V - v_k) / h``, and the residual
+    is ``M_j a_j + C_j V_j + K_j U_j - Q_j`` at every stage. Stage states from a periodic solve,
+    and any linear combination of such states, satisfy the kinematic rows
+    ``U_j = u_k + h sum_l A_jl V_l`` exactly, so this is the whole residual along Newton steps.
+    Zero (to round-off) at the solution of :func:`solve` with the same data.
+
+    Parameters
+    ----------
+    M, C, K : ndarray, shape (n s, N, N) or (N, N)
+        At the collocation instants (element by element), or constant.
+    Q : ndarray, shape (n s, N)
+    U, V : ndarray, shape (n s, N)
+        Stage displacements and velocities.
+    period : float
+        [s].
+    scheme : str
+        A stiffly accurate scheme (``"radau2"``, ``"radau3"``).
+    edges : array_like, shape (n + 1,), optional
+        Element edges [s] (default uniform).
+
+    Returns
+    -------
+    ndarray, shape (n s, N)
+        Force residual [N] (moments [N m] on rotational DOFs).
+    """
+    tab = tableau(scheme)
+    if tab.c[-1] != 1.0:
+        raise InputError(f"residual: scheme {scheme!r} is not stiffly accurate (its last stage is not the "
+                         "element end)")
+    s = tab.s
+    U = np.asarray(U, dtype=float)
+    V = np.asarray(V, dtype=float)
+    ns, N = U.shape
+    n = ns // s
+    h = np.full(n, period / n) if edges is None else np.diff(np.asarray(edges, dtype=float))
+    Ue, Ve = U.reshape(n, s, N), V.reshape(n, s, N)
+    v0 = np.roll(Ve[:, -1], 1, axis=0)
+    acc = np.einsum("jl,kln->kjn", _inverse_A(scheme), Ve - v0[:, None]) / h[:, None, None]
+    acc = acc.reshape(ns, N)
+
+    def apply(X, Y):
+        X = np.asarray(X, dtype=float)
+        return Y @ X.T if X.ndim == 2 else np.einsum("tij,tj->ti", X, Y)
+
+    return apply(M, acc) + apply(C, V) + apply(K, U) - np.asarray(Q, dtype=float)
+
+
+@lru_cache(maxsize=None)
+def _inverse_A(name: str) -> np.ndarray:
+    return np.linalg.inv(tableau(name).A)
 
 
 def _resolve(name, Ms, Cs, Ks, Qs, n, s):

@@ -40,11 +40,22 @@ import numpy as np
 from . import periodic
 from ..errors import ConvergenceWarning, InputError, UnboundedResponseError
 
-__all__ = ["solve", "fixed_point", "NonlinearResult", "NONLINEAR_METHODS"]
+__all__ = ["solve", "fixed_point", "newton", "NonlinearResult", "NONLINEAR_METHODS"]
 
 log = logging.getLogger(__name__)
 
-NONLINEAR_METHODS = ("fixed-point", "relaxation", "anderson")
+NONLINEAR_METHODS = ("newton", "fixed-point", "relaxation", "anderson")
+#: Smallest damping factor of Newton's line search before it gives up (the step is then too far
+#: from the solution for the linearisation to point the way: continuation, not iteration)
+NEWTON_LAMBDA_MIN = 1.0 / 1024
+#: Sufficient decrease of the residual merit in Newton's line search (Armijo's constant)
+ARMIJO = 1e-4
+#: Most step fractions tried per Newton iteration
+MAX_TRIALS = 12
+#: Full Newton steps taken, watched, before the line search (see :func:`newton`)
+WATCHDOG = 10
+#: A watched full step whose correction exceeds the best one by this factor ends the watch
+WATCHDOG_GROWTH = 10.0
 #: Stop as diverging when the change grows this much above its smallest value...
 DIVERGENCE_FACTOR = 1e4
 #: ... or when the response grows this much beyond the first (linear) solve.
@@ -183,9 +194,12 @@ def solve(M, C, K, Q, period: float, state_terms: StateTerms, hold: str = "foh",
         Cz = _add(np.zeros((n, N, N)), dC, "dC", (n, N, N), it) if dC is not None else None
         return periodic.solve(Mi, C, K, Q, period, hold=hold, Kz=Kz, Qz=Qz, Cz=Cz, **solver_kwargs)
 
-    sol, history, converged, message = fixed_point(
-        lambda U, V, it: (lambda so: (so, so.U, so.V))(G(U, V, it)), n, N, period, eps=eps,
-        max_iter=max_iter, method=method, relaxation=relaxation, depth=depth)
+    Gx = (lambda U, V, it: (lambda so: (so, so.U, so.V))(G(U, V, it)))
+    if method == "newton":  # with the tangent linearisation G is Newton's step; with the secant a damped iteration
+        sol, history, converged, message = newton(Gx, n, N, period, eps=eps, max_iter=max_iter)
+    else:
+        sol, history, converged, message = fixed_point(Gx, n, N, period, eps=eps, max_iter=max_iter, method=method,
+                                                       relaxation=relaxation, depth=depth)
     return NonlinearResult(solution=sol, iterations=len(history),
                            history=np.asarray(history), converged=converged,
                            message=message, method=method)
@@ -297,8 +311,158 @@ def fixed_point(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter
     return sol, history, converged, message
 
 
+def newton(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter: int = 50,
+           x0: tuple[np.ndarray, np.ndarray] | None = None, merit=None,
+           lambda_min: float = NEWTON_LAMBDA_MIN, warn: bool = True):
+    """Newton's method with a line search on the periodic problem (the G map is its Newton step).
+
+    With the state terms in tangent form, ``G(x) - x`` is the full Newton correction of the
+    discrete periodic problem at ``x`` (the linear periodic solve is the tangent's block-cyclic
+    system). The step ``x + lambda (G(x) - x)`` is accepted by a sufficient decrease of the
+    residual, ``phi(x_new) <= (1 - ARMIJO lambda) phi(x)`` with ``phi = merit`` (the scaled norm
+    of the discrete equations' residual: a trial costs no linear solve, and the Newton direction
+    is a descent direction of it), or without a merit by the natural monotonicity of the
+    corrections, ``||G(x_new) - x_new|| <= (1 - lambda / 2) ||G(x) - x||`` (a trial then costs
+    a solve). A rejected ``lambda`` is replaced by the minimum of the quadratic model of
+    ``phi^2`` along the step, clipped to ``[lambda / 10, lambda / 2]``, down to ``lambda_min``.
+    Near the solution ``lambda = 1`` is accepted and the convergence is quadratic: one linear
+    solve per iteration.
+
+    Parameters
+    ----------
+    G : callable
+        ``G(U, V, it) -> (solution, U_new, V_new)`` (see :func:`fixed_point`).
+    n, N, period, eps, max_iter, x0
+        As :func:`fixed_point` (``max_iter``: linear solves).
+    merit : callable, optional
+        ``merit(U, V) -> float``, the norm of the residual of the discrete equations at a trial
+        response (see :func:`kedfem.solvers.collocation.residual`).
+    lambda_min : float
+        Smallest step fraction tried.
+    warn : bool
+        Issue a :class:`ConvergenceWarning` when it does not converge.
+
+    Returns
+    -------
+    solution, history, converged, message
+        As :func:`fixed_point`; ``history`` holds the Eq. 21 change of every iterate (the
+        relative Newton correction of the displacements). ``solution`` is the linear solve at
+        the last iterate; when not converged it is no answer (the caller must not read it as
+        one).
+    """
+    vscale = period / (2 * math.pi)
+
+    def pack(U, V):
+        return np.concatenate([U.ravel(), (V * vscale).ravel()])
+
+    def unpack(x):
+        return x[:n * N].reshape(n, N), x[n * N:].reshape(n, N) / vscale
+
+    def evaluate(x, it):
+        U, V = unpack(x)
+        sol, Un, Vn = G(U, V, it)
+        g = pack(Un, Vn)
+        if not np.all(np.isfinite(g)):
+            raise UnboundedResponseError("the linear solve about the trial iterate is not finite")
+        return sol, g - x, float(np.linalg.norm(Un - U)), float(np.linalg.norm(Un))
+
+    def phi_of(x):
+        try:
+            v = float(merit(*unpack(x)))
+        except (UnboundedResponseError, FloatingPointError, OverflowError):
+            return math.inf
+        return v if math.isfinite(v) else math.inf
+
+    x = np.zeros(2 * n * N) if x0 is None else pack(np.asarray(x0[0], float), np.asarray(x0[1], float))
+    solves = 1
+    history: list[float] = []
+    sol, d, dU, nU = evaluate(x, 1)
+
+    def rel(dU, nU):
+        return 0.0 if dU == 0.0 else (dU / nU if nU > 0 else math.inf)
+
+    # watched full steps: on a stiff, strongly non-linear problem the full Newton step often
+    # converges where a monotone line search creeps (the residual of the stiff axial rows rises
+    # for a step or two); the best iterate is kept and the line search starts from it if not
+    best = (rel(dU, nU), x, sol, d, dU, nU)
+    watched = 0
+    while watched < WATCHDOG and solves < max_iter and best[0] > eps:
+        history.append(rel(dU, nU))
+        xt = x + d
+        solves += 1
+        watched += 1
+        try:
+            st, dt, dUt, nUt = evaluate(xt, solves)
+        except UnboundedResponseError:
+            break
+        ct = rel(dUt, nUt)
+        if not math.isfinite(ct) or ct > WATCHDOG_GROWTH * best[0]:
+            break
+        x, sol, d, dU, nU = xt, st, dt, dUt, nUt
+        if ct < best[0]:
+            best = (ct, x, sol, d, dU, nU)
+    _c, x, sol, d, dU, nU = best
+    phi = phi_of(x) if merit is not None else float(np.linalg.norm(d))
+    lam = 1.0
+    converged, message = False, ""
+    while True:
+        change = 0.0 if dU == 0.0 else (dU / nU if nU > 0 else math.inf)
+        history.append(change)
+        log.debug("newton: solve %d change %.3e merit %.3e lambda %.3g", solves, change, phi, lam)
+        if change <= eps:
+            converged = True
+            message = f"converged after {solves} linear solves (change {change:.2e} <= eps {eps:.1e})"
+            break
+        if solves >= max_iter:
+            message = f"not converged after {max_iter} linear solves (last change {change:.2e} > eps {eps:.1e})"
+            break
+        lam = min(1.0, 4.0 * lam)  # after a damped step, try a longer one
+        accepted, trials = False, 0
+        while lam >= lambda_min and trials < MAX_TRIALS:
+            trials += 1
+            xt = x + lam * d
+            if merit is not None:
+                phit = phi_of(xt)
+                ok = phit <= (1.0 - ARMIJO * lam) * phi
+            else:
+                solves += 1
+                try:
+                    st, dt, dUt, nUt = evaluate(xt, solves)
+                    phit = float(np.linalg.norm(dt))
+                except UnboundedResponseError:
+                    phit = math.inf
+                ok = phit <= (1.0 - 0.5 * lam) * phi
+            if ok:
+                accepted = True
+                break
+            if math.isfinite(phit) and phit > 0:
+                # phi^2 along the step: phi0^2 (1 - 2 l) + c l^2 through phi(lam); its minimum
+                c = (phit * phit - phi * phi * (1.0 - 2.0 * lam)) / (lam * lam)
+                pred = phi * phi / c if c > 0 else 0.5 * lam
+                lam = min(max(pred, 0.1 * lam), 0.5 * lam)
+            else:
+                lam *= 0.1
+        if not accepted:
+            message = (f"the line search found no step that lowers the residual (step fraction below "
+                       f"{max(lam, lambda_min):.2g} after {solves} linear solves; last change {change:.2e}): "
+                       "the iterate is too far from a periodic response for the linearisation to lead to it")
+            break
+        if merit is not None:
+            solves += 1
+            try:
+                st, dt, dUt, nUt = evaluate(xt, solves)
+            except UnboundedResponseError as exc:
+                message = f"the linear solve about an accepted iterate is unbounded ({exc})"
+                break
+        x, sol, d, dU, nU, phi = xt, st, dt, dUt, nUt, phit
+    if not converged and warn:
+        warnings.warn(f"non-linear iteration (newton): {message}", ConvergenceWarning, stacklevel=3)
+    log.info("non-linear iteration (newton): %s", message)
+    return sol, history, converged, message
+
+
 def fixed_point_or_anderson(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter: int = 50,
-                            method: str = "fixed-point", x0=None):
+                            method: str = "fixed-point", x0=None, merit=None):
     """:func:`fixed_point`, and when the plain iteration fails, Anderson acceleration from the start.
 
     The plain iteration diverges where a resonance or buckling makes the state
@@ -312,6 +476,9 @@ def fixed_point_or_anderson(G, n: int, N: int, period: float, *, eps: float = 1e
         solution is returned. The abandoned attempt's warnings are dropped.
     """
     import warnings as _w
+    if method == "newton":
+        sol, hist, conv, _msg = newton(G, n, N, period, eps=eps, max_iter=max_iter, x0=x0, merit=merit)
+        return sol, tuple(hist), conv, method
     if method != "fixed-point":
         sol, hist, conv, _msg = fixed_point(G, n, N, period, eps=eps, max_iter=max_iter, method=method, x0=x0)
         return sol, tuple(hist), conv, method

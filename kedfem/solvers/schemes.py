@@ -102,7 +102,7 @@ class Discrete:
         return self._instant_states()
 
 
-def _with_state_terms(C, K, Q, dC, dK, dQ):
+def with_state_terms(C, K, Q, dC, dK, dQ):
     """``C + dC``, ``K + dK``, ``Q + dQ`` (each term may be None)."""
     return (C if dC is None else C + dC, K if dK is None else K + dK, Q if dQ is None else Q + dQ)
 
@@ -213,7 +213,7 @@ class ExponentialHold(Scheme):
             M, C, K, Q = sp.reduce(M, C, K, Q)
             dC, dK, dQ = sp.reduce_linearised(dC, dK, dQ)
         if self.hold == "zoh" or (dK is None and dC is None and dQ is None):
-            C, K, Q = _with_state_terms(C, K, Q, dC, dK, dQ)
+            C, K, Q = with_state_terms(C, K, Q, dC, dK, dQ)
             sol = periodic.solve(M, C, K, Q, period, hold=self.hold, n=n, **options)
         else:
             # a linearisation about node k held over element k: it cancels at the
@@ -276,7 +276,7 @@ class Collocation(Scheme):
     def solve(self, M, C, K, Q, period, n, *, dC=None, dK=None, dQ=None, edges=None, stiff=None,
               **options):
         options.pop("delta", None)  # no exponentials
-        C, K, Q = _with_state_terms(C, K, Q, dC, dK, dQ)
+        C, K, Q = with_state_terms(C, K, Q, dC, dK, dQ)
         sol = collocation.solve(M, C, K, Q, period, self.name, n=n, edges=edges, **options)
         N = sol.U.shape[1]
         s = self.stages

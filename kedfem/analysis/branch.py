@@ -1,0 +1,602 @@
+"""Following a periodic response along a parameter: the numerical engine of continuation.
+
+A *family* is a scene that depends on a parameter ``lam`` (the drive speed, or a mechanism
+parameter through its builder), discretised on a fixed number of time elements. A point of its
+branch is ``(x, lam)`` with ``x`` the response at the scheme's instants, packed as
+``[U, V T / (2 pi)]`` (the velocities in displacement units of the cycle, so that ``x`` changes
+smoothly with the speed).
+
+Pseudo-arclength continuation (Keller): from a point and the branch's unit tangent ``t`` the
+predictor steps ``ds`` along ``t``; the corrector solves the periodic problem together with the
+arclength condition ``<t, (x, lam) - predictor> = 0`` by Newton's method on the bordered
+system. Each Newton step uses the periodic solve of the tangent problem twice (the block-cyclic
+structure of the linear solve is kept; the border is eliminated):
+
+* ``a = J^-1 F = x - G(x, lam)``, the Newton correction at fixed ``lam``;
+* ``b = J^-1 F_lam = (G(x, lam) - G(x, lam + delta)) / delta`` (exact to first order near the
+  branch, where ``F`` is small);
+
+then ``d lam = (-N + <t_x, a>) / (t_lam - <t_x, b>)`` and ``d x = -a - b d lam``. At a fold the
+periodic problem alone is singular, the bordered one is not: the branch is followed through it.
+The step length adapts to the corrector's work and to the predictor's error; a step whose
+corrector fails is halved.
+
+Along the branch each point's Floquet multipliers are those of the tangent periodic problem at
+the converged orbit (the linear solve ``G`` there). A change of stability between two points is
+classified by the multiplier that crossed the unit circle (through +1: a fold; through -1: a
+flip, period doubling; a complex pair: Neimark-Sacker) and located by the secant method on
+``|mu| - 1`` of that multiplier along the secant between the two points.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import warnings
+from collections import OrderedDict
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InstabilityWarning, KedError, UnboundedResponseError
+from ..fe.modal_damping import DampingField
+from ..fe.damping import ModalDamping
+from ..fe.assembler import Assembler
+from ..fe.model import FEModel
+from ..motion.kinematics import Cycle
+from .problem import PeriodicProblem
+
+__all__ = ["Family", "Point", "Crossing", "Tracker", "damping_field", "classify", "MAX_POINTS"]
+
+log = logging.getLogger(__name__)
+
+#: most points of one branch
+MAX_POINTS = 400
+#: most linear solves of Newton from the linear response when a continuation looks for its start
+START_ITER = 16
+#: most linear solves of one natural continuation step (a step that needs more is halved)
+STEP_ITER = 16
+#: a level with at least this many instants takes modal damping from an interpolated field
+FIELD_INSTANTS = 256
+#: relative tolerance of the arclength corrector (displacements and parameter)
+CORRECTOR_EPS = 1e-8
+#: most bordered Newton steps of one correction
+CORRECTOR_ITER = 8
+#: relative finite-difference step of the parameter derivative
+DELTA = 1e-6
+#: largest relative predictor error accepted (larger: the step may have jumped branches)
+PREDICTOR_ERROR = 2.0
+#: the predictor error (relative to the step) the step control aims at
+PREDICTOR_TARGET = 0.5
+#: a multiplier within this of the unit circle is on it (stability changes at crossings only)
+ON_CIRCLE = 1e-9
+#: a multiplier with an imaginary part below this fraction of its modulus is real
+REAL_TOL = 1e-6
+
+_FAILURES = (KedError, np.linalg.LinAlgError, FloatingPointError)
+
+
+def damping_field(scene, model, cycle) -> DampingField | None:
+    """The scene's modal damping over the cycle (None for other damping)."""
+    if not isinstance(scene.damping, ModalDamping):
+        return None
+
+    def exact(t):
+        asm = Assembler(model, cycle.at(t), (), damping=scene.damping)
+        return asm.damping_matrix(*asm.structural())
+
+    return DampingField(exact, scene.period)
+
+
+class Family:
+    """The periodic problems of a parameter family on ``n`` time elements.
+
+    Parameters
+    ----------
+    scene_of : callable
+        ``scene_of(lam) -> Scene``.
+    n : int
+        Time elements per period of the problem.
+    scheme : kedfem.solvers.schemes.Scheme
+    periods : int
+        Drive cycles per period of the response (2: period doubled).
+    """
+
+    def __init__(self, scene_of, n: int, scheme, periods: int = 1):
+        self.scene_of, self.n, self.scheme, self.periods = scene_of, int(n), scheme, int(periods)
+        self._cache: OrderedDict = OrderedDict()
+        self.solves = 0
+
+    def problem(self, lam: float) -> PeriodicProblem:
+        """The problem at ``lam`` (the last few are kept)."""
+        key = float(lam)
+        if key in self._cache:
+            self._cache.move_to_end(key)
+            return self._cache[key]
+        sc = self.scene_of(key)
+        model = FEModel(sc.mech, reduction=sc.reduction)
+        cycle = Cycle(sc.mech)
+        ni = self.scheme.instants(self.n, sc.period * self.periods).size
+        field = damping_field(sc, model, cycle) if ni >= FIELD_INSTANTS else None
+        prob = PeriodicProblem(sc, model, cycle, self.scheme, self.n, damping_field=field, periods=self.periods)
+        self._cache[key] = prob
+        while len(self._cache) > 6:
+            self._cache.popitem(last=False)
+        return prob
+
+    def vscale(self, lam: float) -> float:
+        return self.problem(lam).period / (2 * math.pi)
+
+    def pack(self, U, V, lam: float) -> np.ndarray:
+        return np.concatenate([np.asarray(U, float).ravel(), (np.asarray(V, float) * self.vscale(lam)).ravel()])
+
+    def unpack(self, x: np.ndarray, lam: float):
+        prob = self.problem(lam)
+        m = prob.instants.size * prob.N
+        return x[:m].reshape(-1, prob.N), x[m:].reshape(-1, prob.N) / self.vscale(lam)
+
+    def step(self, x: np.ndarray, lam: float):
+        """``(discrete, G(x, lam))``: one linear periodic solve of the tangent problem."""
+        prob = self.problem(lam)
+        self.solves += 1
+        with warnings.catch_warnings():  # an unstable orbit's solve warns: its multipliers say it
+            warnings.simplefilter("ignore", InstabilityWarning)
+            d, U, V = prob.step(*self.unpack(x, lam))
+        g = self.pack(U, V, lam)
+        if not np.all(np.isfinite(g)):
+            raise UnboundedResponseError("the tangent problem's periodic solve is not finite")
+        return d, g
+
+    def solve(self, lam: float, x0: np.ndarray | None, eps: float, max_iter: int = 30):
+        """Newton's method with a line search at fixed ``lam`` from ``x0`` (None: the linear response).
+
+        Returns
+        -------
+        (Solved, x) ; x is None when it did not converge.
+        """
+        prob = self.problem(lam)
+        start = None if x0 is None else self.unpack(x0, lam)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", InstabilityWarning)
+            out = prob.solve(start, eps=eps, max_iter=max_iter, method="newton")
+        self.solves += out.iterations
+        if not out.converged:
+            return out, None
+        return out, self.pack(*out.discrete.instant_states(), lam)
+
+
+@dataclass
+class Point:
+    """A converged point of a branch.
+
+    Attributes
+    ----------
+    lam : float
+        Parameter value.
+    x : ndarray
+        Packed response at the instants.
+    multipliers : ndarray of complex
+        Floquet multipliers of the orbit (the tangent problem at the converged point).
+    s : float
+        Arclength from the branch's start (weighted norm).
+    tangent : ndarray or None
+        Unit tangent ``(t_x, t_lam)`` at the point (weighted), oriented along the branch.
+    iterations : int
+        Corrector steps.
+    discrete : object
+        The linear solve at the point (its dense output).
+    """
+
+    lam: float
+    x: np.ndarray
+    multipliers: np.ndarray
+    s: float = 0.0
+    tangent: np.ndarray | None = None
+    iterations: int = 0
+    discrete: object = field(default=None, repr=False)
+
+    @property
+    def rho(self) -> float:
+        return float(np.abs(self.multipliers).max()) if self.multipliers.size else 0.0
+
+    @property
+    def stable(self) -> bool:
+        return self.rho < 1.0 - ON_CIRCLE
+
+
+def _indicators(mu: np.ndarray) -> dict:
+    """``|mu| - 1`` of the largest multiplier of each kind: real positive, real negative, complex."""
+    mu = np.asarray(mu, dtype=complex)
+    out = {"fold": -1.0, "flip": -1.0, "neimark-sacker": -1.0}
+    if not mu.size:
+        return out
+    a = np.abs(mu)
+    real = np.abs(mu.imag) <= REAL_TOL * np.maximum(a, 1e-300)
+    for kind, sel in (("fold", real & (mu.real > 0)), ("flip", real & (mu.real < 0)), ("neimark-sacker", ~real)):
+        if sel.any():
+            out[kind] = float(a[sel].max()) - 1.0
+    return out
+
+
+def classify(before: np.ndarray, after: np.ndarray) -> str | None:
+    """The kind of multiplier that crossed the unit circle between two points (None: none did)."""
+    ib, ia = _indicators(before), _indicators(after)
+    crossed = [k for k in ib if (ib[k] < 0) != (ia[k] < 0)]
+    if not crossed:
+        return None
+    return max(crossed, key=lambda k: abs(ia[k] - ib[k]))  # the one that moved the most through zero
+
+
+@dataclass(frozen=True)
+class Crossing:
+    """A located change of stability (or fold) between two branch points.
+
+    Attributes
+    ----------
+    kind : {"fold", "flip", "neimark-sacker"}
+    lam : float
+        Located parameter value.
+    bracket : (float, float)
+        The parameter values of the last iterates either side.
+    multiplier : complex
+        The crossing multiplier at the located point.
+    point : Point
+        The located point.
+    """
+
+    kind: str
+    lam: float
+    bracket: tuple
+    multiplier: complex
+    point: Point
+
+
+class Tracker:
+    """Pseudo-arclength continuation of one branch of a :class:`Family` (module docstring).
+
+    Parameters
+    ----------
+    family : Family
+    eps : float
+        Relative tolerance of the corrector.
+    ds : float
+        First step length (weighted arclength: relative change of the response and the parameter).
+    ds_min, ds_max : float
+        Step length bounds.
+    """
+
+    def __init__(self, family: Family, *, eps: float = CORRECTOR_EPS, ds: float = 0.05, ds_min: float = 1e-5,
+                 ds_max: float = 0.25):
+        self.family = family
+        self.eps = eps
+        self.ds, self.ds_min, self.ds_max = ds, ds_min, ds_max
+        self.wx = 1.0
+        self.wl = 1.0
+
+    # ------------------------------------------------------------------ geometry
+    def set_scale(self, x: np.ndarray, lam: float) -> None:
+        """Weights of the arclength norm from a point: relative changes of the displacements and
+        of ``lam`` (the velocities follow from the displacements; weighting them too let the
+        fast phase changes of lightly damped high modes throttle the steps)."""
+        m = x.size // 2
+        self.mask = np.zeros(x.size)
+        self.mask[:m] = 1.0
+        self.wx = 1.0 / max(float(np.dot(x[:m], x[:m])), 1e-300)
+        self.wl = 1.0 / max(lam * lam, 1e-300)
+
+    def _dot(self, a: np.ndarray, b: np.ndarray) -> float:
+        m = a.size // 2
+        return float(np.dot(a[:m], b[:m]))
+
+    def norm(self, dx: np.ndarray, dl: float) -> float:
+        return math.sqrt(self.wx * self._dot(dx, dx) + self.wl * dl * dl)
+
+    def unit(self, dx: np.ndarray, dl: float) -> np.ndarray:
+        r = self.norm(dx, dl)
+        return np.concatenate([dx, [dl]]) / r
+
+    def tangent_at(self, x: np.ndarray, lam: float, direction: float = 1.0) -> np.ndarray:
+        """The branch's unit tangent at a converged point: ``(x_lam, 1)`` with ``x_lam = -b``."""
+        dl = DELTA * max(abs(lam), 1e-12)
+        _d1, g1 = self.family.step(x, lam)
+        _d2, g2 = self.family.step(x, lam + dl)
+        xl = (g2 - g1) / dl
+        return direction * self.unit(xl, 1.0)
+
+    # ------------------------------------------------------------------ corrector
+    def correct(self, xp: np.ndarray, lp: float, t: np.ndarray):
+        """Bordered Newton from the predictor ``(xp, lp)`` on the hyperplane normal to ``t``.
+
+        Returns
+        -------
+        Point or None
+            None when it does not converge within :data:`CORRECTOR_ITER` steps.
+        """
+        tx, tl = t[:-1], float(t[-1])
+        x, lam = xp.copy(), float(lp)
+        b = None
+        d = None
+        for k in range(1, CORRECTOR_ITER + 1):
+            try:
+                d, g = self.family.step(x, lam)
+                a = x - g
+                if b is None or k <= 3:
+                    dl = DELTA * max(abs(lam), 1e-12)
+                    _d2, g2 = self.family.step(x, lam + dl)
+                    b = (g - g2) / dl
+            except _FAILURES as e:
+                log.debug("corrector: step %d failed at lam=%.6g: %s", k, lam, e)
+                return None
+            N = self.wx * self._dot(tx, x - xp) + self.wl * tl * (lam - lp)
+            den = self.wl * tl - self.wx * self._dot(tx, b)
+            if den == 0.0 or not math.isfinite(den):
+                return None
+            dlam = (-N + self.wx * self._dot(tx, a)) / den
+            dx = -a - b * dlam
+            x = x + dx
+            lam = lam + dlam
+            small = (float(np.linalg.norm(dx)) <= self.eps * max(float(np.linalg.norm(x)), 1e-300)
+                     and abs(dlam) <= self.eps * max(abs(lam), 1e-300))
+            if not (math.isfinite(lam) and np.all(np.isfinite(x))):
+                return None
+            if small:  # the multipliers of the orbit: the tangent problem at the (converged) last iterate
+                return Point(lam, x, np.asarray(d.floquet_multipliers), iterations=k, discrete=d)
+        return None
+
+    def fixed(self, x0: np.ndarray, lam: float) -> Point | None:
+        """Correct at a fixed parameter value (Newton with a line search) from ``x0``."""
+        try:
+            out, x = self.family.solve(lam, x0, self.eps)
+        except _FAILURES:
+            return None
+        if x is None:
+            return None
+        return Point(lam, x, np.asarray(out.discrete.floquet_multipliers), iterations=out.iterations,
+                     discrete=out.discrete)
+
+    # ------------------------------------------------------------------ stepping
+    def advance(self, p: Point, t: np.ndarray):
+        """One accepted step from ``p`` along ``t``: (new point, its tangent), or None when the
+        step length fell below ``ds_min``."""
+        while self.ds >= self.ds_min:
+            ds = self.ds
+            xp = p.x + ds * t[:-1]
+            lp = p.lam + ds * t[-1]
+            q = self.correct(xp, lp, t)
+            if q is not None:
+                err = self.norm(q.x - xp, q.lam - lp) / max(ds, 1e-300)
+                if err > PREDICTOR_ERROR and ds > 4 * self.ds_min:
+                    self.ds = ds * 0.5
+                    continue
+                q.s = p.s + self.norm(q.x - p.x, q.lam - p.lam)
+                # the secant, the branch's direction at the new point (a second-order predictor
+                # is not worth its solves: the step control keeps the secant's error small)
+                q.tangent = self.unit(q.x - p.x, q.lam - p.lam)
+                grow = min(2.0, math.sqrt(PREDICTOR_TARGET / max(err, 1e-12)))
+                if q.iterations > 4:
+                    grow = min(grow, 0.7)
+                self.ds = min(self.ds_max, max(ds * grow, self.ds_min))
+                self.set_scale(q.x, q.lam)
+                q.tangent = self.unit(q.tangent[:-1], q.tangent[-1])
+                return q
+            self.ds = ds * 0.5
+        return None
+
+    def locate(self, a: Point, b: Point, kind: str, lam_rtol: float = 1e-4, max_iter: int = 24) -> Crossing:
+        """The parameter value between ``a`` and ``b`` where the ``kind`` indicator crosses zero
+        (secant/Illinois on the fraction along the secant from ``a`` to ``b``)."""
+        dx, dl = b.x - a.x, b.lam - a.lam
+        t = self.unit(dx, dl)
+        ta, tb = 0.0, 1.0
+        fa, fb = _indicators(a.multipliers)[kind], _indicators(b.multipliers)[kind]
+        lo, hi = a, b
+        best = a if abs(fa) < abs(fb) else b
+        side = 0
+        for _ in range(max_iter):
+            fbest = _indicators(best.multipliers)[kind] if best is not a and best is not b else min(abs(fa), abs(fb))
+            if abs(hi.lam - lo.lam) <= lam_rtol * max(abs(best.lam), 1e-300) and abs(fbest) <= 1e-3:
+                break
+            if tb - ta <= 1e-9:
+                break
+            tau = tb - fb * (tb - ta) / (fb - fa) if fb != fa else 0.5 * (ta + tb)
+            tau = min(max(tau, ta + 0.02 * (tb - ta)), tb - 0.02 * (tb - ta))
+            q = self.correct(a.x + tau * dx, a.lam + tau * dl, t)
+            if q is None:
+                tau = 0.5 * (ta + tb)
+                q = self.correct(a.x + tau * dx, a.lam + tau * dl, t)
+                if q is None:
+                    break
+            fq = _indicators(q.multipliers)[kind]
+            best = q
+            if (fq < 0) == (fa < 0):
+                ta, fa, lo = tau, fq, q
+                if side == -1:
+                    fb *= 0.5
+                side = -1
+            else:
+                tb, fb, hi = tau, fq, q
+                if side == 1:
+                    fa *= 0.5
+                side = 1
+        mu = best.multipliers
+        if mu.size:
+            ind = np.abs(np.abs(mu) - 1.0)
+            crit = complex(mu[int(np.argmin(ind))])
+        else:
+            crit = complex(0.0)
+        return Crossing(kind, float(best.lam), (float(min(lo.lam, hi.lam)), float(max(lo.lam, hi.lam))), crit, best)
+
+    def fold_between(self, p: Point, q: Point, r: Point) -> Crossing:
+        """The fold (extremum of ``lam`` along the branch) among three points p, q, r whose
+        ``lam`` turns at q: a parabola of ``lam`` in arclength, its vertex corrected on the branch."""
+        s = np.array([p.s, q.s, r.s])
+        lam = np.array([p.lam, q.lam, r.lam])
+        c = np.polyfit(s - q.s, lam, 2)
+        sv = q.s - c[1] / (2 * c[0]) if c[0] != 0 else q.s
+        sv = min(max(sv, p.s), r.s)
+        # correct at the vertex along the secant of the two points around it
+        a, b = (p, q) if sv <= q.s else (q, r)
+        tau = (sv - a.s) / max(b.s - a.s, 1e-300)
+        dx, dl = b.x - a.x, b.lam - a.lam
+        t = self.unit(dx, dl)
+        v = self.correct(a.x + tau * dx, a.lam + tau * dl, t)
+        if v is None:
+            v = q
+        mu = v.multipliers
+        crit = complex(mu[int(np.argmin(np.abs(mu - 1.0)))]) if mu.size else complex(1.0)
+        lam_v = float(np.polyval(c, sv - q.s)) if v is q else v.lam
+        return Crossing("fold", lam_v, (float(min(lam)), float(max(lam))), crit, v)
+
+
+# ---------------------------------------------------------------------- homotopy
+@dataclass(frozen=True)
+class Reached:
+    """The periodic response at a target parameter value, reached by continuation.
+
+    Attributes
+    ----------
+    point : Point
+        The converged point at the target.
+    start : float
+        Parameter value where the continuation started (Newton converged from the linear response).
+    steps : int
+        Continuation steps.
+    folds : tuple of float
+        Parameter values of the folds passed on the way.
+    solves : int
+        Linear periodic solves spent.
+    path : tuple of Point
+        The points on the way (the start first, the target last).
+    """
+
+    point: Point
+    start: float
+    steps: int
+    folds: tuple
+    solves: int
+    path: tuple = ()
+
+
+def _extrapolate(pts: list, lam: float) -> np.ndarray:
+    """Linear extrapolation in the parameter from the last two points (the last one alone)."""
+    if len(pts) < 2:
+        return pts[-1].x
+    a, b = pts[-2], pts[-1]
+    return b.x + (b.x - a.x) * ((lam - b.lam) / (b.lam - a.lam))
+
+
+def reach(family: Family, target: float, *, eps: float, lowest: float | None = None,
+          max_steps: int = MAX_POINTS) -> Reached:
+    """The response at ``target`` by continuation from a parameter value where Newton's method
+    converges from the linear response.
+
+    The start is the largest of ``target / 2, target / 4, ...`` (down to ``lowest``, default
+    ``target / 64``) where it converges; from there natural continuation (a linear predictor in
+    the parameter, Newton with a line search as corrector) steps toward ``target`` with step
+    control. When the step cannot be shortened further a fold is likely: pseudo-arclength
+    continuation (:class:`Tracker`) then follows the branch through it (and through the fold
+    that may turn it forward again) until it crosses ``target``.
+
+    Parameters
+    ----------
+    family : Family
+    target : float
+        Parameter value to reach (for the speed: > 0 [rad/s]).
+    eps : float
+        Tolerance of the Newton iterations.
+    lowest : float, optional
+        Smallest parameter value tried as a start.
+    max_steps : int
+        Most continuation steps.
+
+    Returns
+    -------
+    Reached
+
+    Raises
+    ------
+    NonlinearSolveError
+        No start found, or the continuation stalls before ``target`` (``highest``: the largest
+        parameter value reached).
+    """
+    from ..errors import NonlinearSolveError
+    sign = 1.0 if target > 0 else -1.0
+    lowest = abs(target) / 64 if lowest is None else abs(lowest)
+    start = None
+    lam = 0.75 * abs(target)
+    while lam >= lowest * (1 - 1e-12):
+        try:
+            out, x = family.solve(sign * lam, None, eps, max_iter=START_ITER)
+        except _FAILURES:
+            x = None
+        if x is not None:
+            start = Point(sign * lam, x, np.asarray(out.discrete.floquet_multipliers), discrete=out.discrete)
+            break
+        lam *= 0.5 if lam < 0.7 * abs(target) else 2.0 / 3.0
+    if start is None:
+        raise NonlinearSolveError(
+            f"no periodic response found from the linear response at any of {abs(target) / 2:.6g} .. "
+            f"{lowest:.6g} (the target's halves): the non-linear iteration does not converge even far below "
+            "the target", highest=None, tried="Newton from the linear response at the target and its halves")
+    pts = [start]
+    step = 0.1 * abs(start.lam)
+    folds: list[float] = []
+    steps = 0
+    while abs(pts[-1].lam) < abs(target) * (1 - 1e-12) and steps < max_steps:
+        steps += 1
+        new = sign * min(abs(target), abs(pts[-1].lam) + step)
+        try:
+            out, x = family.solve(new, _extrapolate(pts, new), eps, max_iter=STEP_ITER)
+        except _FAILURES:
+            x = None
+        if x is not None:
+            pts.append(Point(new, x, np.asarray(out.discrete.floquet_multipliers), discrete=out.discrete))
+            step *= 1.5 if out.iterations <= 7 else (1.0 if out.iterations <= 11 else 0.7)
+            continue
+        step *= 0.5
+        if step >= 1e-3 * abs(pts[-1].lam):
+            continue
+        # the natural step cannot be shortened further: a fold; follow the branch through it
+        if len(pts) < 2:
+            break
+        found = _through_folds(family, pts, target, eps, folds, max_steps - steps)
+        if found is None:
+            break
+        pts.extend(found)
+    last = pts[-1]
+    if abs(last.lam - target) > 1e-12 * abs(target):
+        raise NonlinearSolveError(
+            f"the continuation from {abs(start.lam):.6g} stalled at {abs(last.lam):.6g} before the target "
+            f"{abs(target):.6g}", highest=abs(last.lam),
+            tried=f"Newton from the linear response, then continuation from {abs(start.lam):.6g}")
+    return Reached(last, abs(start.lam), steps, tuple(folds), family.solves, tuple(pts))
+
+
+def _through_folds(family: Family, pts: list, target: float, eps: float, folds: list, budget: int):
+    """Pseudo-arclength from the last two points until the branch crosses ``target`` again:
+    the points on the way, the last one at ``target`` (Newton at fixed parameter from the
+    interpolation); None when it does not get there."""
+    tr = Tracker(family, eps=max(eps, CORRECTOR_EPS))
+    a, b = pts[-2], pts[-1]
+    tr.set_scale(b.x, b.lam)
+    t = tr.unit(b.x - a.x, b.lam - a.lam)
+    p = b
+    prev_dir = math.copysign(1.0, t[-1])
+    out = []
+    for _ in range(max(budget, 1)):
+        q = tr.advance(p, t)
+        if q is None:
+            return None
+        t = q.tangent
+        d = math.copysign(1.0, t[-1])
+        if d != prev_dir:
+            folds.append(p.lam)
+            prev_dir = d
+        if (abs(p.lam) - abs(target)) * (abs(q.lam) - abs(target)) <= 0 and d > 0 \
+                and abs(q.lam) >= abs(target):
+            tau = (target - p.lam) / (q.lam - p.lam)
+            end = tr.fixed(p.x + tau * (q.x - p.x), target)
+            return None if end is None else out + [end]
+        out.append(q)
+        p = q
+    return None

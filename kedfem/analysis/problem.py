@@ -1,0 +1,305 @@
+"""One discretised periodic problem of a scene: its instants, its assembled system, its Newton map.
+
+A :class:`PeriodicProblem` is a scene on ``n`` time elements of one scheme (over one cycle,
+or over ``periods`` cycles for a subharmonic response): the rigid-body motion at the scheme's
+instants, the chosen effects assembled there, and
+
+* :meth:`PeriodicProblem.linear` -- the periodic solve when nothing depends on the elastic state;
+* :meth:`PeriodicProblem.step` -- the map ``G(x)``: one linear periodic solve with the
+  state-dependent effects in tangent form about a trial response ``x`` (its correction
+  ``G(x) - x`` is Newton's step of the discrete problem);
+* :meth:`PeriodicProblem.merit` -- the scaled norm of the discrete equations' residual at ``x``
+  (stiffly accurate collocation: no solve);
+* :meth:`PeriodicProblem.solve` -- Newton's method with a line search (or the paper's
+  iteration, or Anderson's) from a start, returning a :class:`Solved`.
+
+The refinement of :func:`kedfem.solve` builds one problem per level; the continuation of
+:mod:`kedfem.analysis.continuation` builds one per parameter value. A trial response is given
+at the problem's instants, ``x = (U, V)``, each ``(n_i, N)``.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..fe.assembler import Assembler
+from ..solvers import collocation, schemes
+from ..solvers.nonlinear import fixed_point, fixed_point_or_anderson, newton
+
+__all__ = ["PeriodicProblem", "Solved", "STREAM_BYTES"]
+
+log = logging.getLogger(__name__)
+
+#: above this many bytes for the (n, N, N) matrices of a linear scene, assemble chunk by chunk
+STREAM_BYTES = 400e6
+
+
+@dataclass(frozen=True)
+class Solved:
+    """A periodic solve of a :class:`PeriodicProblem`.
+
+    Attributes
+    ----------
+    discrete : kedfem.solvers.schemes.Discrete
+        The linear periodic solve at the last iterate (when converged: at the solution, with the
+        Floquet multipliers of the orbit's linearisation).
+    converged : bool
+        The iteration met its tolerance (always True for a linear problem).
+    iterations : int
+        Linear periodic solves.
+    history : tuple of float
+        Relative change of the displacements at each iterate (the paper's Eq. 21).
+    method : str
+        The non-linear method that produced it (``""`` for a linear problem).
+    caught : list
+        Warnings raised while solving (re-issued by the caller for the result it keeps).
+    """
+
+    discrete: object
+    converged: bool
+    iterations: int
+    history: tuple
+    method: str
+    caught: list
+
+
+class _Chunks:
+    """Lazy per-chunk assembly for the streaming periodic solver (M, C, K, Q callables)."""
+
+    def __init__(self, asm: Assembler):
+        self.asm = asm
+        self._idx = None
+        self._terms = None
+
+    def _get(self, idx):
+        idx = np.asarray(idx)
+        if self._idx is None or self._idx.shape != idx.shape or not np.array_equal(self._idx, idx):
+            self._terms = self.asm.system(idx)
+            self._idx = idx.copy()
+        return self._terms
+
+    def M(self, idx):
+        return self._get(idx).M
+
+    def C(self, idx):
+        return self._get(idx).C
+
+    def K(self, idx):
+        return self._get(idx).K
+
+    def Q(self, idx):
+        return self._get(idx).Q
+
+
+def constant_or_sampled(X: np.ndarray) -> np.ndarray:
+    """``X[0]`` when every instant holds exactly the same matrix, else ``X``.
+
+    A time-invariant scene (every body translating, or none moving) then takes
+    the solvers' constant-matrix path: one exponential (or one stage
+    factorisation) instead of one per element.
+    """
+    if X.ndim == 3 and X.shape[0] > 1 and np.array_equal(X, np.broadcast_to(X[0], X.shape)):
+        return X[0]
+    return X
+
+
+def _static_inverse(K, M, n: int, N: int) -> np.ndarray:
+    """``K(t)^-1`` at every instant (n, N, N) (or one (N, N)): a force residual as the static
+    displacement it would cause. A stiff direction (a link's axial stiffness) then weighs no more
+    than a soft one: in units of force the von Karman strains of a small bending error make the
+    axial rows dominate, and a line search on them took steps of a few per cent. Where ``K`` is
+    singular, ``K + (trace K / trace M) M``."""
+    K = np.asarray(K, dtype=float)
+    Mm = np.asarray(M, dtype=float)
+    try:
+        return np.linalg.inv(K)
+    except np.linalg.LinAlgError:
+        s = np.trace(K, axis1=-2, axis2=-1) / np.trace(np.broadcast_to(Mm, K.shape), axis1=-2, axis2=-1)
+        return np.linalg.inv(K + s[..., None, None] * Mm)
+
+
+def mass_scale(M, n: int, N: int) -> np.ndarray:
+    """``1 / diag(M)`` at every instant, shape (n, N): a force residual in units of acceleration."""
+    d = np.diagonal(np.asarray(M), axis1=-2, axis2=-1)
+    d = np.broadcast_to(d, (n, N))
+    return 1.0 / np.where(d > 0, d, np.max(d))
+
+
+class PeriodicProblem:
+    """A scene discretised on ``n`` time elements (see the module docstring).
+
+    Parameters
+    ----------
+    scene : Scene
+    model : FEModel
+        The scene's FE model.
+    cycle : kedfem.motion.kinematics.Cycle
+        The rigid-body motion of the scene's mechanism (at the scene's speed).
+    scheme : kedfem.solvers.schemes.Scheme
+    n : int
+        Time elements over the problem's period.
+    damping_field : DampingField, optional
+        The scene's modal damping over the cycle (instead of an eigenproblem per instant).
+    stiff : ndarray of bool, optional
+        DOFs of the exact stiff split of the exponential holds.
+    periods : int
+        Cycles of the drive the problem spans (2: a period-doubled response).
+
+    Attributes
+    ----------
+    period : float
+        The problem's period, ``periods`` drive cycles [s].
+    instants : ndarray, shape (n_i,)
+        The scheme's instants [s] in ``[0, period)``.
+    motion : Motion
+        The rigid-body motion at the instants.
+    assembler : Assembler
+    state : bool
+        A chosen effect depends on the elastic state (the problem is non-linear).
+    kinematics, assembly : float
+        Seconds spent on the motion and the assembly.
+    """
+
+    def __init__(self, scene, model, cycle, scheme, n: int, *, damping_field=None, stiff=None,
+                 periods: int = 1):
+        ta = time.perf_counter()
+        self.scene, self.model, self.scheme, self.n = scene, model, scheme, int(n)
+        self.periods = int(periods)
+        self.period = scene.period * self.periods
+        self.instants = scheme.instants(self.n, self.period)
+        t = self.instants if self.periods == 1 else np.mod(self.instants, scene.period)
+        self.motion = cycle.at(t)
+        tb = time.perf_counter()
+        self.assembler = Assembler(model, self.motion, scene.effects, damping=scene.damping,
+                                   damping_field=damping_field)
+        self.state = bool(self.assembler.state_dependent)
+        self.options = {"delta": scene.delta} if scene.delta is not None else {}
+        if stiff is not None:
+            self.options["stiff"] = stiff
+        self._terms = None
+        self._D = None
+        self.kinematics = tb - ta
+        self.assembly = time.perf_counter() - tb
+
+    @property
+    def N(self) -> int:
+        """Elastic DOFs."""
+        return self.model.n_dof
+
+    @property
+    def terms(self):
+        """The assembled state-independent system at the instants (``M, C, K, Q``)."""
+        if self._terms is None:
+            t0 = time.perf_counter()
+            self._terms = self.assembler.system()
+            self.assembly += time.perf_counter() - t0
+        return self._terms
+
+    # ------------------------------------------------------------------ linear
+    def linear(self):
+        """The periodic solve of the state-independent system (streamed when it is large).
+
+        Returns
+        -------
+        kedfem.solvers.schemes.Discrete
+        """
+        N, ni = self.N, self.instants.size
+        if not self.state and 3 * ni * N * N * 8 > STREAM_BYTES:
+            ch = _Chunks(self.assembler)
+            return self.scheme.solve(ch.M, ch.C, ch.K, ch.Q, self.period, self.n, **self.options)
+        terms = self.terms
+        M, C, K = (constant_or_sampled(X) for X in (terms.M, terms.C, terms.K))
+        return self.scheme.solve(M, C, K, terms.Q, self.period, self.n, **self.options)
+
+    # ------------------------------------------------------------------ non-linear
+    def step(self, U, V, it: int = 0):
+        """``G(x)``: the linear periodic solve with the state terms in tangent form about ``U, V``.
+
+        Parameters
+        ----------
+        U, V : ndarray, shape (n_i, N)
+            Trial response at the instants [m, rad; m/s, rad/s].
+        it : int
+            Iteration number (for messages).
+
+        Returns
+        -------
+        discrete : Discrete
+        U, V : ndarray, shape (n_i, N)
+            The new response at the instants.
+        """
+        terms = self.terms
+        dC, dK, dQ = self.assembler.state_terms(U, V)
+        d = self.scheme.solve(terms.M, terms.C, terms.K, terms.Q, self.period, self.n, dC=dC, dK=dK, dQ=dQ,
+                              **self.options)
+        return (d,) + d.instant_states()
+
+    @property
+    def has_residual(self) -> bool:
+        """The discrete equations' residual is available (a stiffly accurate collocation scheme)."""
+        return isinstance(self.scheme, schemes.Collocation) and collocation.stiffly_accurate(self.scheme.name)
+
+    def merit(self, U, V) -> float:
+        """Norm of the discrete equations' residual at a trial response, each DOF's row in units of
+        acceleration (divided by its mass); zero at the solution.
+
+        Raises
+        ------
+        InputError
+            For a scheme without a residual (:attr:`has_residual` False).
+        """
+        terms = self.terms
+        if self._D is None:
+            self._D = _static_inverse(terms.K, terms.M, self.instants.size, self.N)
+        Ct, Kt, Qt = schemes.with_state_terms(terms.C, terms.K, terms.Q, *self.assembler.state_terms(U, V))
+        r = collocation.residual(terms.M, Ct, Kt, Qt, U, V, self.period, self.scheme.name)
+        return float(np.linalg.norm(np.einsum("tij,tj->ti", self._D, r) if self._D.ndim == 3 else r @ self._D.T))
+
+    def solve(self, x0=None, *, eps: float, max_iter: int, method: str = "newton") -> Solved:
+        """The periodic response: linear, or iterated from ``x0`` (default the linear response).
+
+        Parameters
+        ----------
+        x0 : (U, V), optional
+            Start at the instants.
+        eps : float
+            Tolerance on the relative change of the displacements (Eq. 21).
+        max_iter : int
+            Most linear solves.
+        method : {"newton", "fixed-point", "relaxation", "anderson"}
+            ``"fixed-point"`` falls back to Anderson when it diverges
+            (:func:`kedfem.solvers.nonlinear.fixed_point_or_anderson`).
+
+        Returns
+        -------
+        Solved
+        """
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            if not self.state:
+                return Solved(self.linear(), True, 1, (), "", list(caught))
+            merit = self.merit if self.has_residual else None
+            d, hist, converged, used = fixed_point_or_anderson(
+                self.step, self.instants.size, self.N, self.period, eps=eps, max_iter=max_iter, method=method,
+                x0=x0, merit=merit)
+        return Solved(d, bool(converged), len(hist), tuple(float(h) for h in hist), used, list(caught))
+
+    def polish(self, solved: Solved, *, eps: float, max_iter: int) -> Solved:
+        """Iterate a solve on to a tighter ``eps`` from where it stopped."""
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            x0 = solved.discrete.instant_states()
+            if solved.method == "newton":
+                d, hist, conv, _m = newton(self.step, self.instants.size, self.N, self.period, eps=eps,
+                                           max_iter=max_iter, x0=x0,
+                                           merit=self.merit if self.has_residual else None)
+            else:
+                d, hist, conv, _m = fixed_point(self.step, self.instants.size, self.N, self.period, eps=eps,
+                                                max_iter=max_iter, method=solved.method, x0=x0)
+        return Solved(d, bool(conv), solved.iterations + len(hist),
+                      solved.history + tuple(float(h) for h in hist), solved.method, list(caught))

@@ -1,0 +1,98 @@
+"""kf.continuation on a forced cubic oscillator built with the public API (a tip mass on a
+cantilever, a crank-driven spring and a cubic spring to the frame): the response curve through
+both folds against an independent harmonic balance with its own continuation and fold location
+(tests/duffing_hb.py, nothing of kedfem), to 1e-4 in amplitude and fold speeds; the middle
+branch unstable, the others stable."""
+
+import math
+
+import numpy as np
+import pytest
+
+import kedfem as kf
+from duffing_hb import Rig
+
+RPM = 2 * math.pi / 60
+P = dict(L=0.3, b=0.02, h=0.004, E=2e11, rho=7800.0, mt=1.0, kd=1000.0, k3=3.0e7, e=0.002)
+ALPHA = 2.0  # mass-proportional damping [1/s]
+
+
+def rig(speed=500 * RPM):
+    m = kf.Mechanism("duffing rig")
+    m.ground("G", (0.0, 0.0), clamped=True)          # a vertical cantilever ...
+    m.joint("T", (0.0, P["L"]))
+    m.ground("X", (-0.1, P["L"]))                    # ... loaded at its tip by a crank-driven spring
+    m.joint("P", (-0.1 + P["e"], P["L"]))
+    m.link("beam", "G", "T", material=kf.Material(E=P["E"], rho=P["rho"]),
+           section=kf.Section.rectangle(P["b"], P["h"]), elements=1)
+    m.link("crank", "X", "P", rigid=True)
+    m.point_mass("T", P["mt"])
+    m.spring("drive", "P", "T", k=P["kd"], axis=(1.0, 0.0))
+    m.spring("cubic", "T", k=0.0, k3=P["k3"], axis=(1.0, 0.0))  # hardening: k3 v^3
+    m.drive("crank", speed=speed)
+    return m
+
+
+@pytest.fixture(scope="module")
+def branch():
+    sc = kf.Scene(rig(), effects=("inertia", "springs"), damping=kf.Rayleigh(alpha=ALPHA, beta=0.0))
+    return kf.continuation(sc, 300 * RPM, 900 * RPM, steps=48, errors=False, progress=False)
+
+
+@pytest.fixture(scope="module")
+def reference():
+    r = Rig(**P, alpha=ALPHA)
+    pts = r.branch(300 * RPM, 900 * RPM)
+    ws = np.array([w for _a, w in pts])
+    turns = [i for i in range(1, len(ws) - 1) if (ws[i] - ws[i - 1]) * (ws[i + 1] - ws[i]) < 0]
+    folds = [r.fold(*pts[i]) for i in turns]
+    return r, pts, folds
+
+
+def tip_peak(res, samples=2048):
+    x = res.resample(times=np.arange(samples) * (res.scene.period / samples)).joint_displacement("T")[:, 0]
+    return float(np.abs(x).max())
+
+
+def test_fold_speeds_agree_with_harmonic_balance(branch, reference):
+    _r, _pts, folds = reference
+    ref = sorted(w for _a, w in folds)
+    got = sorted(b.value for b in branch.bifurcations if b.kind == "fold")
+    assert len(ref) == 2 and len(got) == 2, (ref, got)
+    for a, b in zip(got, ref):
+        assert a == pytest.approx(b, rel=1e-4)
+    first = branch.first_loss_of_stability
+    assert first.kind == "fold" and first.value == pytest.approx(max(ref), rel=1e-4)
+
+
+def test_amplitudes_agree_and_the_middle_branch_is_unstable(branch, reference):
+    r, pts, folds = reference
+    w_hi, w_lo = max(w for _a, w in folds), min(w for _a, w in folds)
+    hb = [(w, r.peak_v(a), a) for a, w in pts]
+    checked = 0
+    for p in branch.points[::4]:
+        amp = tip_peak(p.result)
+        # the harmonic-balance point on the same part of the curve: nearest in (speed, amplitude)
+        w0, _amp0, a0 = min(hb, key=lambda q: abs(q[0] - p.value) / p.value + abs(q[1] - amp) / amp)
+        a = r.solve(a0, p.value)
+        assert amp == pytest.approx(r.peak_v(a), rel=1e-4), p.value / RPM
+        checked += 1
+    assert checked >= 10
+    # stability: the branch is stable up to the upper fold, unstable between the folds on its way
+    # back, stable again after the lower fold
+    vals, stable = branch.values, branch.stable
+    d = np.sign(np.diff(vals))
+    i_hi = int(np.argmax(d < 0))                 # the speed turns back at the upper fold ...
+    i_lo = i_hi + int(np.argmax(d[i_hi:] > 0))   # ... and forward again at the lower one
+    assert vals[i_hi] == pytest.approx(w_hi, rel=1e-4) and vals[i_lo] == pytest.approx(w_lo, rel=1e-3)
+    assert stable[:i_hi - 1].all() and not stable[i_hi + 1:i_lo].any() and stable[i_lo + 1:].all()
+
+
+def test_branch_files(branch, tmp_path):
+    files = kf.write_branch(branch, tmp_path)
+    names = sorted(f.name for f in files)
+    assert names == ["branch.csv", "branch_bifurcations.csv", "response_curve.png"]
+    import csv
+    rows = list(csv.DictReader(open(tmp_path / "branch_bifurcations.csv")))
+    assert [r["kind"] for r in rows] == ["fold", "fold"]
+    assert float(rows[0]["speed_rpm"]) == pytest.approx(branch.bifurcations[0].value / RPM)
