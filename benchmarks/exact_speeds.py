@@ -236,8 +236,6 @@ def multiplier(r):
     X_k - X_{k-2} give the multiplier of the two-revolution map (kind "2-rev").
     """
     out = dict(mu=float("nan"), mod=float("nan"), kind="-", fit=float("nan"), ratios=[])
-    if r.regime == "failed":
-        return out
     X = r.flat
     lag = 2 if r.regime == "2-periodic" else 1
     D = [X[i] - X[i - lag] for i in range(lag, len(X))]
@@ -246,6 +244,8 @@ def multiplier(r):
     else:
         seq = [d for d in r.d2 if np.isfinite(d)]
     out["ratios"] = [seq[i] / seq[i - lag] for i in range(max(lag, len(seq) - 4), len(seq)) if seq[i - lag] > 0]
+    if r.regime not in ("1-periodic", "2-periodic"):
+        return out          # irregular or failed: the changes do not decay, no multiplier
     if lag == 2:
         D = D[::-1][::2][::-1]      # non-overlapping: X_k - X_{k-2}, X_{k-2} - X_{k-4}, ...
     if len(D) < 3:
@@ -511,7 +511,7 @@ def render(results, lv, mode, wall, final, chain):
     # ---- summary
     L.append("\n## Summary\n")
     L.append("Peaks of |mid-span chord deflection| [mm] (1-periodic: best estimate +- u; otherwise the "
-             f"finest level's last revolution, and for 2-periodic the two revolutions' peaks a / b); "
+             "finest level's last revolution, and for 2-periodic the two revolutions' peaks a / b); "
              "angle of each peak [deg] and sign; regime run's last-two-revolution difference "
              "|k-(k-1)| and |k-(k-2)|, cycles; multiplier estimate.\n")
     L.append("| rpm | regime | crank [mm] | coupler [mm] | follower [mm] | peak angles crank / coupler / follower [deg] | "

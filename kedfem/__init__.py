@@ -20,7 +20,7 @@ from .analysis.pipeline import solve
 from .solvers.expm import expm
 from .analysis.validation import ValidationReport, validate, table3
 from .analysis.defaults import default_scene
-from .io.scenefile import SceneFileError, load_scene, scene_from_dict
+from .io.scenefile import SceneFileError, load_scene, scene_family, scene_from_dict
 from .fe.reduction import CraigBampton
 from .analysis.mesh_check import MeshError, mesh_error
 from .analysis.campbell import CampbellResult, Crossing, campbell

@@ -356,7 +356,19 @@ def _locate_checked(key: str, base_dir, trust: Trust):
             raise InputError(f"mechanism {key!r}: no file {target}")
         check_trust(key, trust)
         return None
-    located = locate(target, _search_folders(base_dir, trust))
+    folders = _search_folders(base_dir, trust)
+    located = locate(target, folders)
+    if located is not None and located.folder is None:
+        top = target.split(".")[0]
+        shadowed = [Path(f) / (top + ".py") for f in folders if (Path(f) / (top + ".py")).is_file()]
+        shadowed += [Path(f) / top for f in folders if (Path(f) / top / "__init__.py").is_file()]
+        origin = located.files[0] if located.files else None
+        shadowed = [s for s in shadowed if origin is None or s.resolve() not in (origin, origin.parent)]
+        if shadowed:
+            raise InputError(f"mechanism {key!r}: {shadowed[0]} is shadowed by the module {top!r} of the Python path "
+                             f"({origin or 'built in'}): name your builder by its file, "
+                             f"'{shadowed[0].name if shadowed[0].suffix else shadowed[0].name + '/...'}:"
+                             f"{key.rpartition(':')[2]}', or rename it")
     check_trust(key, trust, located=located)
     if located is None:
         where = " or ".join(_search_folders(base_dir, trust))

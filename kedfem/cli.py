@@ -9,6 +9,9 @@
     Parameter sweep on a process pool or a Dask cluster.
 ``kedfem export [SCENE.toml | MECHANISM] [--render]``
     VTK/PVD series (and mode shapes) for ParaView, optionally a PNG render.
+``kedfem continuation [SCENE.toml | MECHANISM] --speeds LO:HI``
+    The periodic response followed over speed through folds, its stability
+    and bifurcations (and the period-2 response past a flip).
 ``kedfem list``
     Mechanisms with their parameters, effects with their descriptions.
 
@@ -40,7 +43,7 @@ __all__ = ["main", "build_parser"]
 
 log = logging.getLogger(__name__)
 
-COMMANDS = ("run", "validate", "sweep", "export", "list", "campbell", "critical", "stability-map")
+COMMANDS = ("run", "validate", "sweep", "export", "list", "campbell", "critical", "stability-map", "continuation")
 EXIT_ERROR = 2
 EXIT_STRICT = 3
 
@@ -142,6 +145,11 @@ def _load(target: str | None, overrides: dict, trusted=None) -> _Loaded:
     from .io import scenefile as sf
     from .trust import Trust
     trust = Trust.of(trusted, "--trust")
+    if target is not None and Path(target).suffix.lower() == ".py" and Path(target).is_file():
+        raise InputError(f"{target!r} is a Python file: name its builder function, e.g. "
+                         f"kedfem {' '.join(sys.argv[1:2]) or 'run'} {target}:build")
+    if target is not None and Path(target).is_dir():
+        raise InputError(f"{target!r} is a folder: give a scene file (.toml) or a mechanism name (kedfem list)")
     if target is not None and (Path(target).suffix.lower() == ".toml" or Path(target).is_file()):
         trust = trust.searching(Path(target).resolve().parent)
         spec = sf.load_spec(Path(target), overrides, trust=trust)
@@ -207,7 +215,7 @@ def _cmd_run(args) -> int:
     sc = ld.scene
     dofs = tuple(args.dofs.split(",")) if args.dofs else o.dofs
     _check_dofs(sc, dofs)
-    check_out_dir(out_dir)
+    check_out_dir(out_dir, "--out" if args.out else "the scene's output.dir")
     check_replaceable(out_dir)
     how = f"{sc.steps} time elements" if sc.steps is not None else f"tolerance {sc.rtol:g}"
     print(f"kedfem {__version__}: solving {sc.name or sc.mech.name} ({sc.scheme}, {how}) ...", flush=True)
@@ -305,8 +313,18 @@ def _cmd_sweep(args) -> int:
     # validate the axis keys against the base scene before starting workers
     sf.parse_scene(dict(ld.data, sweep={k: list(v) for k, v in axes.items()}), source="command line",
                    trust=ld.trust)
+    # and every value of every axis, alone on the base scene, before the workers start (a value the
+    # builder itself rejects is the point's failure, recorded in the table with the others solved)
+    for k, vals in axes.items():
+        for v in dict.fromkeys(vals):
+            try:
+                sf.parse_scene(sf.with_overrides(ld.data, {k: v}), source=f"--param {k}={v!r}", trust=ld.trust,
+                               overridden=(k,))
+            except sf.SceneFileError as e:
+                if e.key != "mechanism":
+                    raise
     out_dir = Path(args.out) if args.out else ld.outputs.dir
-    check_out_dir(out_dir)
+    check_out_dir(out_dir, "--out" if args.out else "the scene's output.dir")
     check_replaceable(out_dir)
     from .io.outdir import RunFolder
     from .io.sweep_journal import SweepJournal, sweep_signature
@@ -375,7 +393,7 @@ def _cmd_export(args) -> int:
     ld = _load(args.scene, _overrides(args), args.trust)
     o = ld.outputs
     out_dir = Path(args.out) if args.out else o.dir
-    check_out_dir(out_dir)
+    check_out_dir(out_dir, "--out" if args.out else "the scene's output.dir")
     check_replaceable(out_dir)
     sc = ld.scene
     how = f"{sc.steps} time elements" if sc.steps is not None else f"tolerance {sc.rtol:g}"
@@ -518,7 +536,7 @@ def _cmd_campbell(args) -> int:
     ld = _load(args.scene, _overrides(args), args.trust)
     speeds = _rpm_values(args.speeds, "--speeds")
     out_dir = Path(args.out) if args.out else ld.outputs.dir
-    check_out_dir(out_dir)
+    check_out_dir(out_dir, "--out" if args.out else "the scene's output.dir")
     check_replaceable(out_dir)
     with _report_warnings():
         res = campbell(ld.scene, speeds, n_modes=args.n_modes, harmonics=args.harmonics, nodes=args.nodes,
@@ -541,7 +559,7 @@ def _cmd_critical(args) -> int:
           f"{args.lo:g} .. {args.hi:g} rpm ...", flush=True)
     with _report_warnings():
         res = critical_speed(ld.scene, args.lo * rpm, args.hi * rpm, rtol=args.tol, kind=args.kind,
-                             linear=not args.nonlinear, scan=args.scan, max_solves=args.max_solves)
+                             linear=args.linear, scan=args.scan, max_solves=args.max_solves)
     unit = "rho" if args.kind == "parametric" else "f1 [Hz]"
     print(f"  {'speed [rpm]':>12s} {unit:>12s} {'+-':>8s}")
     for e in res.evaluations:
@@ -558,7 +576,7 @@ def _cmd_stability_map(args) -> int:
     speeds = _rpm_values(args.speeds, "--speeds")
     key, values = parse_axis(args.param)
     out_dir = Path(args.out) if args.out else ld.outputs.dir
-    check_out_dir(out_dir)
+    check_out_dir(out_dir, "--out" if args.out else "the scene's output.dir")
     check_replaceable(out_dir)
     print(f"kedfem {__version__}: stability map of {ld.scene.name or ld.scene.mech.name}, {speeds.size} speeds x "
           f"{len(values)} values of {key} on {args.scheduler} ...", flush=True)
@@ -580,6 +598,34 @@ def _cmd_stability_map(args) -> int:
 
     _publish(out_dir, "stability-map", ld.source, write)
     return 1 if smap.failures else 0
+
+
+def _cmd_continuation(args) -> int:
+    from .analysis.continuation import continuation
+    from .io.branch_files import write
+    from .io.report import check_out_dir
+    ld = _load(args.scene, _overrides(args), args.trust)
+    text = args.speeds.strip()
+    parts = text.split(":")
+    try:
+        lo, hi = (float(x) for x in parts)
+    except ValueError:
+        raise InputError(f"--speeds: give LO:HI [rev/min], got {text!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo > 0 and hi > 0 and lo != hi):
+        raise InputError(f"--speeds: LO and HI must be different finite speeds > 0 [rev/min], got {text!r}")
+    out_dir = Path(args.out) if args.out else ld.outputs.dir
+    check_out_dir(out_dir, "--out" if args.out else "the scene's output.dir")
+    check_replaceable(out_dir)
+    rpm = 2 * math.pi / 60
+    print(f"kedfem {__version__}: continuation of {ld.scene.name or ld.scene.mech.name} in speed from {lo:g} to "
+          f"{hi:g} rpm ...", flush=True)
+    with _report_warnings():
+        br = continuation(ld.scene, lo * rpm, hi * rpm, steps=args.steps, errors=not args.no_errors,
+                          period2=not args.no_period2, max_points=args.max_points,
+                          progress=False if args.no_progress else None)
+    print(br.describe())
+    _publish(out_dir, "continuation", ld.source, lambda folder: write(br, folder, plots=not args.no_plots))
+    return 0
 
 
 # ---------------------------------------------------------------- parser
@@ -710,8 +756,9 @@ def build_parser() -> argparse.ArgumentParser:
     k.add_argument("--scan", type=_int_range(0, 1000), default=0, metavar="N",
                    help="speeds scanned upward inside the bracket first (finds the lowest crossing)")
     k.add_argument("--max-solves", type=_int_range(3, 1000), default=14, metavar="N", help="most solves (default 14)")
-    k.add_argument("--nonlinear", action="store_true",
-                   help="keep geometric_nonlinearity (default: the linearised equations)")
+    k.add_argument("--linear", action="store_true",
+                   help="ask the linearised equations (geometric_nonlinearity -> axial_stiffening; default: the "
+                   "scene's own effects, the stability of the non-linear orbit)")
     k.set_defaults(func=_cmd_critical)
 
     m = sub.add_parser("stability-map", parents=[common, scene], help="spectral radius over speed x a parameter",
@@ -727,6 +774,20 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--no-plots", action="store_true", help="no plot")
     m.add_argument("--no-progress", action="store_true", help="no progress bar")
     m.set_defaults(func=_cmd_stability_map)
+
+    co = sub.add_parser("continuation", parents=[common, scene],
+                        help="the periodic response followed over speed: folds, stability, bifurcations",
+                        description="Follow the periodic response from LO to HI rev/min by pseudo-arclength continuation "
+                        "(through folds of the response curve), with each point's Floquet multipliers and peaks; locate "
+                        "and classify where the stability changes (fold, flip, Neimark-Sacker); past a flip, the "
+                        "period-2 response. Writes branch.csv, branch_bifurcations.csv and response_curve.png.")
+    co.add_argument("--speeds", required=True, metavar="LO:HI", help="speed range [rev/min]; the branch starts at LO")
+    co.add_argument("--no-errors", action="store_true", help="skip each point's time-discretisation error estimate")
+    co.add_argument("--no-period2", action="store_true", help="do not compute the period-2 response past a flip")
+    co.add_argument("--max-points", type=_int_range(3, 5000), default=300, metavar="N", help="most points (default 300)")
+    co.add_argument("--no-plots", action="store_true", help="no plot")
+    co.add_argument("--no-progress", action="store_true", help="no progress bar")
+    co.set_defaults(func=_cmd_continuation)
 
     li = sub.add_parser("list", parents=[common], help="mechanisms, their parameters, and effects",
                         description="List the mechanisms with their parameters and preset scenes, and the effects.")

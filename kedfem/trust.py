@@ -261,23 +261,40 @@ def check(reference: str, trust: Trust, *, located: Located | None = None) -> No
     if trust.everything:
         return
     target, _, fn = reference.rpartition(":")
+    head = (f"the scene names code to run, {reference!r}: ")
+    tail = ("A scene runs catalogue mechanisms only (kedfem list) unless you trust its code (docs/usage.md, "
+            "section 2.5)")
     if target.endswith(".py"):
         if trust.allows_file(target):
             return
-        what = f"the file {target}"
-    else:
-        if trust.allows_module(target):
-            return
-        files = located.files if located is not None else ()
-        if files and all(trust.allows_file(f) for f in files):
-            return
-        what = (f"the module {target!r} ({files[-1]})" if files else f"the module {target!r}")
+        raise UntrustedCodeError(
+            f"{head}the file {target}, which you have not trusted (trusted: {trust.describe()}). {tail}: "
+            f"--trust {target} (or its folder) on the command line, or trust=... in Python")
+    if trust.allows_module(target):
+        return
+    files = located.files if located is not None else ()
+    untrusted = [f for f in files if not trust.allows_file(f)]
+    if files and not untrusted:
+        return
+    if located is not None and located.folder is None and _installed(files):
+        raise UntrustedCodeError(
+            f"{head}the installed module {target!r} ({files[-1]}), library code on this machine, not a builder "
+            f"shipped with the scene. {tail}; a builder of your own is named by its file: "
+            "builder = 'my_linkage.py:build'")
+    where = f" ({untrusted[0]}{', run by the import' if untrusted[0] != files[-1] else ''})" if untrusted else ""
     raise UntrustedCodeError(
-        f"the scene names code to run, {reference!r}: {what}, which you have not trusted (trusted: "
-        f"{trust.describe()}). A scene runs catalogue mechanisms only (kedfem list) unless you trust its "
-        f"code: on the command line --trust FILE, FOLDER or MODULE (e.g. --trust {target}), or give the "
-        f"builder itself as the command's argument (kedfem run {reference}); in Python trust=... "
-        "(kedfem.trust.Trust)")
+        f"{head}the module {target!r}{where}, which you have not trusted (trusted: {trust.describe()}). {tail}: "
+        f"--trust {target.split('.')[0]} (the package), or the folder that holds it, on the command line; "
+        "trust=... in Python")
+
+
+def _installed(files) -> bool:
+    """The files lie in the Python installation (the standard library or site-packages)."""
+    import sysconfig
+    roots = {Path(p).resolve() for k in ("stdlib", "platstdlib", "purelib", "platlib")
+             for p in [sysconfig.get_paths().get(k)] if p}
+    roots |= {Path(p).resolve() for p in (sys.base_prefix, sys.prefix)}
+    return bool(files) and all(any(_inside(Path(f), r) for r in roots) for f in files)
 
 
 def check_function(reference: str, fn, trust: Trust) -> None:

@@ -93,10 +93,15 @@ def test_small_run_in_process_honours_flags(tmp_path, capsys):
                                                           "summary.txt"]
 
 
-def test_scene_file_outputs_and_strict(tmp_path, capsys):
+def test_scene_file_outputs_and_strict(tmp_path, capsys, monkeypatch):
     scene = tmp_path / "s.toml"
     scene.write_text(f'steps = 24\n[mechanism]\nname = "exciter"\n[output]\ndir = "{tmp_path / "o"}"\n'
                      'plots = false\ncsv = false\nnpz = false\nmodes = 0\nevery = 6\n')
+    # a scene file writes below the working folder only: an absolute output.dir is refused
+    rc, out, err = run(capsys, "run", str(scene))
+    assert rc == 2 and "output.dir" in err and "below the working folder" in err and not (tmp_path / "o").exists()
+    scene.write_text(scene.read_text().replace(f'dir = "{tmp_path / "o"}"', 'dir = "o"'))
+    monkeypatch.chdir(tmp_path)
     rc, out, err = run(capsys, "run", str(scene), "--strict")
     assert rc == 0, err
     assert sorted(p.name for p in (tmp_path / "o").iterdir()) == ["kedfem-run.json", "response", "summary.txt"]

@@ -37,7 +37,7 @@ def test_parametric_onset_is_bracketed_by_the_verdicts_of_plain_solves(scene, lo
     """Preset scenes (the four-bar's geometric non-linearity linearised away; 2 elements per link to keep
     the test short) at rtol 1e-2: the onset to 5e-3 in fewer than 15 solves, a plain solve stable 5e-3
     below it and unstable 5e-3 above."""
-    res = critical_speed(scene, lo * RPM, hi * RPM)
+    res = critical_speed(scene, lo * RPM, hi * RPM, linear=True)
     assert isinstance(res, CriticalSpeed) and res.kind == "parametric" and res.direction == "onset"
     assert res.met and res.solves < 15 and res.solves == len(res.evaluations)
     assert res.bracket[0] <= res.speed <= res.bracket[1] and res.bracket[1] - res.bracket[0] <= 5e-3 * res.speed

@@ -180,7 +180,7 @@ def test_unknown_key_named_with_line_and_suggestion(tmp_path):
     ("beta = 2e-5", "zeta = 0.1", "damping.zeta", "does not apply"),
     ("eps = 1e-7", "eps = 2.0", "solver.eps", "< 1"),
     ("max_iter = 20", "max_iter = 10000000", "solver.max_iter", "1 .. 1000"),
-    ("nonlinear_method = \"relaxation\"", "nonlinear_method = \"newton\"", "solver.nonlinear_method", "anderson"),
+    ("nonlinear_method = \"relaxation\"", "nonlinear_method = \"newton-raphson\"", "solver.nonlinear_method", "anderson"),
     ("scale = 50.0", "scale = -1.0", "output.scale", "> 0"),
     ("scale = 50.0", 'scale = "big"', "output.scale", "auto"),
     ("modes = 2", "modes = 1000", "output.modes", "0 .. 24"),

@@ -320,7 +320,7 @@ class Tracker:
             try:
                 d, g = self.family.step(x, lam)
                 a = x - g
-                if b is None or k <= 3:
+                if b is None:
                     dl = DELTA * max(abs(lam), 1e-12)
                     _d2, g2 = self.family.step(x, lam + dl)
                     b = (g - g2) / dl

@@ -25,7 +25,6 @@ import logging
 import math
 import time
 import warnings
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -227,25 +226,25 @@ class Branch:
 
 
 # ---------------------------------------------------------------------- the family
-def _family_of(scene, parameter: str, trust):
+def _family_of(scene, parameter: str):
     """``scene_of(value) -> Scene`` and the parameter's unit."""
     if parameter == "speed":
-        if isinstance(scene, Mapping):
-            from ..io.scenefile import scene_from_dict
-            scene = scene_from_dict(scene, trust=trust)
         if not isinstance(scene, Scene):
-            raise InputError(f"continuation: scene must be a kf.Scene or a scene dictionary, got "
+            raise InputError(f"continuation: scene must be a kf.Scene (its speed is the parameter), got "
                              f"{type(scene).__name__}")
-        return (lambda w: dataclasses.replace(scene, speed=float(w))), "rad/s", scene
-    if not isinstance(scene, Mapping):
-        raise InputError(f"continuation: parameter {parameter!r} is a scene key: give the scene as a dictionary "
-                         "(the layout of a scene file, as for sweeps), or continue in the speed")
-    from ..io import scenefile
+        return (lambda w: dataclasses.replace(scene, speed=float(w))), "rad/s"
+    if isinstance(scene, Scene) or not callable(scene):
+        raise InputError(f"continuation: parameter {parameter!r} is not the speed: give the scene as a function "
+                         "of its value, f(value) -> Scene (kf.scene_family(base, key) makes one from a scene "
+                         "dictionary, as for sweeps)")
 
     def scene_of(v):
-        return scenefile.scene_from_dict(scenefile.with_overrides(scene, {parameter: float(v)}), trust=trust)
+        sc = scene(float(v))
+        if not isinstance(sc, Scene):
+            raise InputError(f"continuation: the scene function returned {type(sc).__name__}, not a kf.Scene")
+        return sc
 
-    return scene_of, "(scene units)", None
+    return scene_of, ""
 
 
 def _elements(scene_of, lo, hi, steps, scheme) -> int:
@@ -355,7 +354,9 @@ def _track(family: Family, p0: Point, p1: Point, lo: float, hi: float, max_point
             found.append((c, p.stable, q.stable))
         elif len(pts) >= 2 and math.copysign(1.0, p.tangent[-1]) != math.copysign(1.0, q.tangent[-1]):
             c = tr.fold_between(pts[-2], p, q)  # a fold where the stability does not change
-            found.append((c, p.stable, q.stable))
+            near = found and found[-1][0].kind == "fold" and abs(found[-1][0].lam - c.lam) <= 1e-3 * abs(c.lam)
+            if not near:  # (the crossing of the step before was this fold already)
+                found.append((c, p.stable, q.stable))
         pts.append(q)
         if bar is not None:
             bar.update(1)
@@ -374,20 +375,22 @@ def _track(family: Family, p0: Point, p1: Point, lo: float, hi: float, max_point
 
 
 def continuation(scene, lo: float, hi: float, *, parameter: str = "speed", steps: int | None = None,
-                 errors: bool = True, period2: bool = True, max_points: int = 300, progress: bool | None = None,
-                 trust=None) -> Branch:
+                 errors: bool = True, period2: bool = True, max_points: int = 300,
+                 progress: bool | None = None) -> Branch:
     """Follow the periodic response of a scene over a parameter, through folds; its stability
     and bifurcations (see the module docstring).
 
     Parameters
     ----------
-    scene : Scene or mapping
-        The scene (its speed is the parameter), or a scene dictionary in the TOML layout (any
-        dotted key can be the parameter, as in sweeps).
+    scene : Scene or callable
+        The scene (its speed is the parameter), or for another parameter a function of its value
+        ``f(value) -> Scene`` (:func:`kedfem.io.scenefile.scene_family` makes one from a scene
+        dictionary and a dotted key, as for sweeps).
     lo, hi : float
         The range [rad/s for the speed; the key's unit otherwise]; the branch starts at ``lo``.
     parameter : str
-        ``"speed"`` (default) or a dotted scene key (``"mechanism.coupler_EI"``).
+        ``"speed"`` (default), or the name of the parameter ``scene`` is a function of
+        (``"mechanism.coupler_EI"``), used in tables and plots.
     steps : int, optional
         Time elements per cycle (default: what the tolerance needs at ``lo`` and the excitation
         at ``hi``).
@@ -399,8 +402,6 @@ def continuation(scene, lo: float, hi: float, *, parameter: str = "speed", steps
         Most points of the branch.
     progress : bool, optional
         A progress bar on stderr (default: on a terminal).
-    trust
-        Code a scene dictionary may name (:mod:`kedfem.trust`).
 
     Returns
     -------
@@ -425,14 +426,14 @@ def continuation(scene, lo: float, hi: float, *, parameter: str = "speed", steps
     max_points = integer("continuation", "max_points", max_points, 3, 5000)
     if not isinstance(parameter, str) or not parameter:
         raise InputError(f"continuation: parameter must be 'speed' or a dotted scene key, got {parameter!r}")
-    scene_of, unit, _sc = _family_of(scene, parameter, trust)
+    scene_of, unit = _family_of(scene, parameter)
     sc0 = scene_of(lo)
     scheme = schemes.get(sc0.scheme)
     if not isinstance(scheme, schemes.Collocation):
         raise InputError(f"continuation: needs a collocation scheme (radau3, radau2, gauss3, gauss2), the scene "
                          f"uses {scheme.name}")
     n = _elements(scene_of, lo, hi, steps, scheme)
-    eps = min(sc0.eps, 1e-8)
+    eps = min(sc0.eps, 1e-6)
     family = Family(scene_of, n, scheme)
     from tqdm.auto import tqdm
     import sys

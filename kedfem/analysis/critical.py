@@ -32,13 +32,17 @@ finds a crossing of its bracket, the lowest one when the bracket holds a
 single one; ``scan`` or a :func:`kedfem.io.design_plots.stability_map` first
 tells where they are.
 
-By default (``linear=True``) the question is asked of the linearised KED
-equations about the rigid-body motion: ``geometric_nonlinearity`` is replaced
-by ``axial_stiffening`` (:func:`kedfem.analysis.campbell.linear_effects`), as in
-``benchmarks/stability.py``. The four-bar and six-bar presets carry the
-geometric non-linearity, whose fixed-point iteration stops converging far
-below the linear onset (four-bar: above ~275 rpm); the linearisation about a
-response that does not exist is no stability statement.
+By default the question is asked of the scene as it is: with
+``geometric_nonlinearity`` the spectral radius is that of the non-linear orbit
+(the linearisation about the converged periodic response, the effect's
+consistent tangent included; :func:`kedfem.solve` reaches the orbit by
+continuation in speed where Newton's method alone does not), each evaluation
+starting from the response at the nearest speed already solved. ``linear=True``
+asks it of the linearised KED equations about the rigid-body motion instead:
+``geometric_nonlinearity`` is replaced by ``axial_stiffening``
+(:func:`kedfem.analysis.campbell.linear_effects`), as in ``benchmarks/stability.py``.
+Where a stable orbit turns back at a fold, :func:`kedfem.continuation` follows the
+whole response curve and locates the change of stability there.
 """
 
 from __future__ import annotations
@@ -174,25 +178,21 @@ class CriticalSpeed:
 
 
 # ------------------------------------------------------------ evaluations
-def _solve_rho(sc: Scene) -> Evaluation:
-    """Spectral radius of the scene's periodic solve, its error and its side."""
+def _solve_rho(sc: Scene, start=None):
+    """Spectral radius of the scene's periodic solve, its error and its side (and the result)."""
     from .pipeline import solve
     speed = abs(sc.mech.drives[0].speed)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            res = solve(sc)
+            res = solve(sc, start=start if sc.state_dependent else None)
         except UnboundedResponseError:
             log.info("critical_speed: %.2f rpm: unbounded response (rho > 1e300)", speed * RPM_PER_RAD_S)
-            return Evaluation(speed, math.inf, 0.0, 1, 0)
+            return Evaluation(speed, math.inf, 0.0, 1, 0), None
     for w in caught:  # an unstable scene's response is large and the instability is the question
         important = issubclass(w.category, (AccuracyWarning, ConvergenceWarning))
         log.log(logging.WARNING if important else logging.DEBUG, "critical_speed at %.2f rpm: %s: %s", speed * RPM_PER_RAD_S,
                 w.category.__name__, w.message)
-    if not res.converged:
-        raise KedError(f"critical_speed: the non-linear iteration does not converge at {speed * RPM_PER_RAD_S:.6g} rpm, so its "
-                       "Floquet multipliers are not those of a periodic response; ask the question of the "
-                       "linearised equations (linear=True) or narrow the bracket")
     st = res.stability
     if st.note:
         log.info("critical_speed at %.2f rpm: %s", speed * RPM_PER_RAD_S, st.note)
@@ -200,7 +200,7 @@ def _solve_rho(sc: Scene) -> Evaluation:
     ev = Evaluation(speed, float(st.spectral_radius), float(st.error or 0.0), side, int(st.elements))
     log.info("critical_speed: %.2f rpm: rho %.6g +- %.1e (%s, %d elements)", ev.rpm, ev.value, ev.error,
              st.verdict, ev.elements)
-    return ev
+    return ev, res
 
 
 def _lowest_frequency(sc: Scene, nodes: int) -> Evaluation:
@@ -289,7 +289,7 @@ def itp_root(f, a: float, b: float, fa: float, fb: float, width: float, more=lam
 
 
 def critical_speed(scene, lo: float, hi: float, *, rtol: float = 5e-3, kind: str = "parametric",
-                   linear: bool = True, scan: int = 0, max_solves: int = 14, nodes: int = 72,
+                   linear: bool = False, scan: int = 0, max_solves: int = 14, nodes: int = 72,
                    trust=None) -> CriticalSpeed:
     """Speed at which a linkage becomes parametrically unstable (or buckles), to a relative tolerance.
 
@@ -311,8 +311,9 @@ def critical_speed(scene, lo: float, hi: float, *, rtol: float = 5e-3, kind: str
         cycle crossing 0.
     linear : bool
         Ask it of the linearised equations: ``geometric_nonlinearity`` replaced
-        by ``axial_stiffening`` (module docstring). The buckling question is
-        always linear.
+        by ``axial_stiffening`` (module docstring). Default False: the scene's
+        own effects (the stability of the non-linear orbit). The buckling
+        question is always linear.
     scan : int
         Bracketing: evaluate up to ``scan`` speeds evenly spaced in ``log(speed)``
         inside ``(lo, hi)``, upward, and refine between the last one on ``lo``'s side
@@ -369,16 +370,24 @@ def critical_speed(scene, lo: float, hi: float, *, rtol: float = 5e-3, kind: str
                              "up to a parametric resonance, so rho = 1 marks no onset; give it damping "
                              "(kf.ModalDamping(0.02)) or use kind='buckling'")
     evals: list[Evaluation] = []
+    solved: dict = {}  # speed -> result: the nearest one starts a non-linear solve
+
+    def nearest(speed: float):
+        if not solved:
+            return None
+        return solved[min(solved, key=lambda s: abs(math.log(s / speed)))]
 
     def evaluate(speed: float) -> Evaluation:
         sc = scene_at(scene, speed, effects=effects, owner="critical_speed")
         if kind == "buckling":
             ev = _lowest_frequency(sc, nodes)
         else:
-            ev = _solve_rho(sc)
+            ev, res = _solve_rho(sc, nearest(speed))
+            if res is not None:
+                solved[speed] = res
             if ev.side == 0 and len(evals) + 1 < max_solves:  # within its error of 1: solve tighter
                 evals.append(ev)
-                ev = _solve_rho(dataclasses.replace(sc, rtol=sc.rtol / 10))
+                ev, _res = _solve_rho(dataclasses.replace(sc, rtol=sc.rtol / 10), nearest(speed))
                 if ev.side == 0:
                     log.warning("critical_speed at %.2f rpm: rho %.6g +- %.1e stays within its error of 1; its "
                                 "side is taken from rho", ev.rpm, ev.value, ev.error)

@@ -205,8 +205,9 @@ class Scene:
         if not (PERIOD_RANGE[0] <= T <= PERIOD_RANGE[1]):
             raise InputError(f"{owner}: the drive's cycle lasts {T:.3g} s (speed {mech.drives[0].speed:.3g} "
                              f"rad/s), outside [{PERIOD_RANGE[0]:g}, {PERIOD_RANGE[1]:g}] s: check the "
-                             "speed's units (rad/s in Python, rev/min in scene files); a linkage this "
-                             "slow is quasi-static (kf.static_response)")
+                             "speed's units (rad/s in Python, rev/min in scene files); " +
+                             ("a linkage this slow is quasi-static (kf.static_response)" if T > PERIOD_RANGE[1]
+                              else "no linkage turns this fast"))
         object.__setattr__(self, "_mech", mech)
 
     def with_accuracy(self, accuracy: str) -> "Scene":

@@ -206,8 +206,11 @@ def write_outputs(res, freqs, peaks, out_dir: Path, stage: Stages, *, plots: boo
     return files
 
 
-def check_out_dir(out_dir: Path) -> None:
-    """An output folder that cannot be written is an input error before any work."""
+def check_out_dir(out_dir: Path, label: str = "output folder") -> None:
+    """An output folder that cannot be written is an input error before any work (a file is
+    created and removed in the nearest existing folder: permissions alone do not tell, e.g. in
+    /proc)."""
+    import tempfile
     p = Path(out_dir).absolute()
     probe = p
     while not probe.exists():
@@ -215,9 +218,15 @@ def check_out_dir(out_dir: Path) -> None:
             break
         probe = probe.parent
     if probe.exists() and not probe.is_dir():
-        raise InputError(f"--out {out_dir}: {probe} is a file, not a folder")
+        raise InputError(f"{label} {out_dir}: {probe} is a file, not a folder")
     if probe.exists() and not os.access(probe, os.W_OK | os.X_OK):
-        raise InputError(f"--out {out_dir}: folder {probe} is not writable")
+        raise InputError(f"{label} {out_dir}: folder {probe} is not writable")
+    try:
+        fd, name = tempfile.mkstemp(prefix=".kedfem-probe-", dir=probe)
+        os.close(fd)
+        os.unlink(name)
+    except OSError as e:
+        raise InputError(f"{label} {out_dir}: cannot write in {probe} ({e.strerror or e})") from None
 
 
 @dataclasses.dataclass(frozen=True)

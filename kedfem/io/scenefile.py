@@ -93,7 +93,7 @@ from ..model.mechanism import MAX_ELEMENTS as _MODEL_MAX_ELEMENTS, Mechanism
 from ..trust import Trust, UntrustedCodeError
 
 __all__ = ["SceneFileError", "UntrustedSceneError", "Outputs", "Preset", "SceneSpec", "load_scene", "load_sweep",
-           "load_spec", "read_scene_file", "scene_from_dict", "parse_scene", "with_overrides", "mechanism_parameters",
+           "load_spec", "read_scene_file", "scene_from_dict", "scene_family", "parse_scene", "with_overrides", "mechanism_parameters",
            "preset", "MAX_STEPS", "MAX_ELEMENTS", "MAX_ITER", "MAX_MODES", "MAX_SWEEP_POINTS", "RPM",
            "check_steps", "grid_points", "grid_size", "describe_damping", "scene_summary"]
 
@@ -369,7 +369,7 @@ def _mechanism(ctx: _Ctx, data: Mapping):
     """The mechanism table: its catalogue entry, the parameters given and the built mechanism."""
     if "mechanism" not in data:
         raise ctx.error("mechanism", "missing: a scene needs a [mechanism] table with name = one of "
-                        f"{', '.join(catalogue.available())}")
+                        f"{', '.join(catalogue.available())}, or builder = 'my_linkage.py:build' (run with --trust)")
     m = data["mechanism"]
     if isinstance(m, Mechanism):  # a built mechanism (Python API, sweeps): no parameters
         return catalogue.for_instance(m), {}, m
@@ -388,6 +388,11 @@ def _mechanism(ctx: _Ctx, data: Mapping):
         raise ctx.error("mechanism.name", "missing: name the mechanism, one of "
                         f"{', '.join(catalogue.available())}, or builder = 'my_linkage.py:build'")
     name = _str(ctx, kname, m["name"])
+    head, colon, fn = name.rpartition(":")
+    if colon and not fn.strip():
+        raise ctx.error(kname, f"{name!r} names no function after ':' (e.g. '{head}:build')")
+    if colon and not fn.isidentifier():
+        raise ctx.error(kname, f"{name!r}: '{fn}' is not a function name")
     ref = catalogue.is_reference(name)
     key = catalogue.canonical(name, ctx.folder)
     avail = catalogue.available()
@@ -522,7 +527,12 @@ def _outputs(ctx, v) -> Outputs:
         d = _str(ctx, "output.dir", v["dir"])
         if not d.strip() or "\0" in d:
             raise ctx.error("output.dir", f"must be a folder name, got {d!r}")
-        kw["dir"] = Path(d)
+        pd = Path(d)
+        if ctx.source is not None and "output.dir" not in ctx.overridden and (
+                pd.is_absolute() or ".." in pd.parts or d.startswith("~") or pd == Path(".")):
+            raise ctx.error("output.dir", f"a scene file writes below the working folder only (a relative path "
+                            f"without '..'), got {d!r}; to write elsewhere, give --out on the command line")
+        kw["dir"] = pd
     for k in ("plots", "csv", "npz", "vtk", "render"):
         if k in v:
             kw[k] = _bool(ctx, f"output.{k}", v[k])
@@ -658,10 +668,41 @@ def parse_scene(data: Mapping, *, source: str | None = None, text: str | None = 
     except KedError as e:
         # name the key the Scene's check is about (the cycle: the speed; else the mechanism)
         msg = str(e)
-        key = "speed_rpm" if ("speed_rpm" in data and ("cycle" in msg or "speed" in msg)) else "mechanism"
+        key = ("speed_rpm" if ("speed_rpm" in data and ("cycle" in msg or "speed" in msg) and "no drive" not in msg)
+               else "mechanism")
         raise ctx.error(key, msg) from None
     clean = {k: copy.deepcopy(v) for k, v in data.items() if k not in ("output", "sweep")}
     return SceneSpec(scene, outputs, sweep, clean)
+
+
+def scene_family(base: Mapping, key: str, *, trust=None):
+    """The scene of a dictionary as a function of one dotted key's value: ``f(value) -> Scene``
+    (for :func:`kedfem.continuation` over a parameter other than the speed).
+
+    Parameters
+    ----------
+    base : mapping
+        Scene dictionary (TOML layout).
+    key : str
+        Dotted key (``"mechanism.coupler_EI"``, ``"damping.zeta"``).
+    trust
+        Code the dictionary may name (:mod:`kedfem.trust`).
+
+    Returns
+    -------
+    callable
+    """
+    if not isinstance(base, Mapping):
+        raise InputError(f"scene_family: base must be a scene dictionary, got {type(base).__name__}")
+    if not isinstance(key, str) or not key or key in ("speed_rpm", "speed"):
+        raise InputError(f"scene_family: key must be a dotted scene key other than the speed, got {key!r}")
+    parse_scene(with_overrides(base, {}), source="scene_family", trust=trust)  # the base alone, checked now
+
+    def scene_of(value):
+        return scene_from_dict(with_overrides(base, {key: value}), source=f"scene_family ({key} = {value!r})",
+                               trust=trust)
+
+    return scene_of
 
 
 def scene_from_dict(data: Mapping, *, source: str | None = None, trust=None) -> Scene:

@@ -223,7 +223,8 @@ def parse_axis(text: str) -> tuple[str, tuple]:
         if num > MAX_SWEEP_POINTS:
             raise InputError(f"sweep axis {key!r}: NUM = {num} exceeds the {MAX_SWEEP_POINTS} points a sweep may "
                              "have (kedfem.io.scenefile.MAX_SWEEP_POINTS)")
-        values = tuple(float(x) for x in np.linspace(float(a), float(b), num))
+        # 12 significant digits: 0.04:0.12:5 gives 0.08, not 0.07999999999999999
+        values = tuple(float(f"{x:.12g}") for x in np.linspace(float(a), float(b), num))
         if not all(math.isfinite(v) for v in values):
             raise InputError(f"sweep axis {key!r}: START:STOP:NUM gives values beyond floating point")
         if all(isinstance(x, int) for x in (a, b)) and all(v.is_integer() for v in values):

@@ -15,6 +15,11 @@ __all__ = ["Material", "Section", "MAX_LENGTH", "flag", "names"]
 #: Largest coordinate, length or section dimension [m] a model may hold (a planar linkage of
 #: a thousand kilometres is a unit mistake; squares and products of lengths then stay finite).
 MAX_LENGTH = 1e6
+#: Largest Young's modulus [Pa] a material may have (diamond: 1.2e12 Pa; stiff stand-ins for rigid
+#: members go to 1e15; beyond, a unit mistake)
+MAX_MODULUS = 1e16
+#: Largest density [kg/m^3] (osmium: 22.6e3; beyond, a unit mistake)
+MAX_DENSITY = 1e5
 
 
 def _positive(owner: str, name: str, value) -> float:
@@ -54,8 +59,9 @@ class Material:
     endurance_limit: float | None = None
 
     def __post_init__(self):
-        object.__setattr__(self, "E", _positive("Material", "E", self.E))
-        object.__setattr__(self, "rho", _positive("Material", "rho", self.rho))
+        object.__setattr__(self, "E", real("Material", "E", self.E, positive=True, limit=MAX_MODULUS, unit=" Pa"))
+        object.__setattr__(self, "rho", real("Material", "rho", self.rho, positive=True, limit=MAX_DENSITY,
+                                             unit=" kg/m^3"))
         if isinstance(self.nu, bool):
             raise InputError(f"Material: nu must be a number, got {self.nu!r}")
         try:

@@ -53,7 +53,8 @@ log = logging.getLogger(__name__)
 
 def _vec2(owner: str, name: str, value, limit: float | None = MAX_LENGTH, unit: str = " m") -> tuple[float, float]:
     """Two finite numbers (x, y); with ``limit``, each of magnitude at most ``limit``."""
-    if isinstance(value, (str, bytes, dict)):
+    if isinstance(value, (str, bytes, dict)) or (isinstance(value, (tuple, list))
+                                                 and any(isinstance(x, (str, bytes, bool)) for x in value)):
         raise InputError(f"{owner}: {name} must be a pair of numbers, got {value!r}")
     try:
         arr = np.asarray(value, dtype=float).reshape(-1)
@@ -298,6 +299,10 @@ class Mechanism:
     frictions: dict[str, Friction] = field(default_factory=dict)
     gravity: tuple[float, float] = (0.0, -9.80665)
     graph: nx.MultiGraph = field(default_factory=nx.MultiGraph, repr=False)
+
+    def __post_init__(self):
+        if not isinstance(self.name, str) or not self.name.strip():
+            raise InputError(f"Mechanism: name must be a non-empty string, got {self.name!r}")
 
     # ------------------------------------------------------------------ joints
     def _new_joint(self, joint: Joint) -> Joint:

@@ -130,7 +130,9 @@ def check_effects(effects) -> tuple[str, ...]:
         An unknown name (the message lists the known ones), an instance whose name another effect
         holds, or a repeat.
     """
-    if isinstance(effects, (str, Effect)):
+    if isinstance(effects, str) and "," in effects:  # "inertia,coupling", as on the command line
+        effects = tuple(e.strip() for e in effects.split(",") if e.strip())
+    elif isinstance(effects, (str, Effect)):
         effects = tuple(e.name for e in _BUILT_IN) if effects == "all" else (effects,)
     try:
         items = list(effects)
