@@ -122,9 +122,11 @@ def part_newton(lines: list):
     print(lines[-2])
 
 
-def part_continuation(top: float, lines: list):
+def part_continuation(top: float, lines: list, only: str = ""):
     lines += ["## 4. kf.continuation from 200 rpm", ""]
     for label, make in scenes().items():
+        if only and not label.lower().startswith(only):
+            continue
         t0 = time.perf_counter()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -154,6 +156,8 @@ def main(argv=None) -> int:
     ap.add_argument("--parts", default="1,2,3,4,5")
     ap.add_argument("--top", type=float, default=450.0, help="highest speed of part 1 [rpm]")
     ap.add_argument("--continuation-top", type=float, default=600.0)
+    ap.add_argument("--out", default=OUT, help="markdown file written")
+    ap.add_argument("--only", default="", help="part 4 for one damping only: modal or rayleigh")
     a = ap.parse_args(argv)
     parts = {int(p) for p in a.parts.split(",")}
     lines = ["# Non-linear periodic responses of the four-bar preset", "",
@@ -168,13 +172,13 @@ def main(argv=None) -> int:
     if 3 in parts:
         part_newton(lines)
     if 4 in parts:
-        part_continuation(a.continuation_top, lines)
+        part_continuation(a.continuation_top, lines, a.only.lower())
     if 5 in parts:
         part_mould(lines)
     lines.append(f"Total wall time {time.perf_counter() - t0:.0f} s.")
-    with open(OUT, "w") as f:
+    with open(a.out, "w") as f:
         f.write("\n".join(lines) + "\n")
-    print(f"wrote {OUT}")
+    print(f"wrote {a.out}")
     return 0
 
 

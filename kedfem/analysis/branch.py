@@ -62,6 +62,8 @@ FIELD_INSTANTS = 256
 CORRECTOR_EPS = 1e-8
 #: most bordered Newton steps of one correction
 CORRECTOR_ITER = 8
+#: corrector steps that evaluate the border's column ``b`` afresh (later ones keep the last)
+FRESH_BORDER = 3
 #: relative finite-difference step of the parameter derivative
 DELTA = 1e-6
 #: largest relative predictor error accepted (larger: the step may have jumped branches)
@@ -272,6 +274,7 @@ class Tracker:
         self.ds, self.ds_min, self.ds_max = ds, ds_min, ds_max
         self.wx = 1.0
         self.wl = 1.0
+        self._failed = None  # (step length whose corrector failed, accepted steps it still caps)
 
     # ------------------------------------------------------------------ geometry
     def set_scale(self, x: np.ndarray, lam: float) -> None:
@@ -320,7 +323,9 @@ class Tracker:
             try:
                 d, g = self.family.step(x, lam)
                 a = x - g
-                if b is None:
+                if b is None or k <= FRESH_BORDER:
+                    # the border's column again at the first iterates: near a fold its error grows
+                    # as |J^-1|^2 |F|, and the predictor's residual F is not small
                     dl = DELTA * max(abs(lam), 1e-12)
                     _d2, g2 = self.family.step(x, lam + dl)
                     b = (g - g2) / dl
@@ -373,12 +378,17 @@ class Tracker:
                 # is not worth its solves: the step control keeps the secant's error small)
                 q.tangent = self.unit(q.x - p.x, q.lam - p.lam)
                 grow = min(2.0, math.sqrt(PREDICTOR_TARGET / max(err, 1e-12)))
-                if q.iterations > 4:
+                if q.iterations > 6:
                     grow = min(grow, 0.7)
-                self.ds = min(self.ds_max, max(ds * grow, self.ds_min))
+                cap = self.ds_max
+                if self._failed is not None:  # not straight back to a length whose corrector failed
+                    cap = min(cap, 0.8 * self._failed[0])
+                    self._failed = None if self._failed[1] <= 1 else (self._failed[0], self._failed[1] - 1)
+                self.ds = min(cap, max(ds * grow, self.ds_min))
                 self.set_scale(q.x, q.lam)
                 q.tangent = self.unit(q.tangent[:-1], q.tangent[-1])
                 return q
+            self._failed = (ds, 4)
             self.ds = ds * 0.5
         return None
 
@@ -486,7 +496,7 @@ def _extrapolate(pts: list, lam: float) -> np.ndarray:
 
 
 def reach(family: Family, target: float, *, eps: float, lowest: float | None = None,
-          max_steps: int = MAX_POINTS) -> Reached:
+          max_steps: int = MAX_POINTS, unit: tuple = (1.0, "")) -> Reached:
     """The response at ``target`` by continuation from a parameter value where Newton's method
     converges from the linear response.
 
@@ -508,6 +518,9 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
         Smallest parameter value tried as a start.
     max_steps : int
         Most continuation steps.
+    unit : (float, str)
+        Factor and name of the unit the messages state parameter values in (for the speed:
+        ``(60 / (2 pi), "rpm")``).
 
     Returns
     -------
@@ -521,6 +534,10 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
     """
     from ..errors import NonlinearSolveError
     sign = 1.0 if target > 0 else -1.0
+
+    def fmt(v: float) -> str:
+        return f"{abs(v) * unit[0]:.6g}" + (f" {unit[1]}" if unit[1] else "")
+
     lowest = abs(target) / 64 if lowest is None else abs(lowest)
     start = None
     lam = 0.75 * abs(target)
@@ -535,8 +552,8 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
         lam *= 0.5 if lam < 0.7 * abs(target) else 2.0 / 3.0
     if start is None:
         raise NonlinearSolveError(
-            f"no periodic response found from the linear response at any of {abs(target) / 2:.6g} .. "
-            f"{lowest:.6g} (the target's halves): the non-linear iteration does not converge even far below "
+            f"no periodic response found from the linear response at any of {fmt(0.75 * target)} .. "
+            f"{fmt(lowest)} (below the target): the non-linear iteration does not converge even far below "
             "the target", highest=None, tried="Newton from the linear response at the target and its halves")
     pts = [start]
     step = 0.1 * abs(start.lam)
@@ -563,12 +580,13 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
         if found is None:
             break
         pts.extend(found)
+        step = 0.02 * abs(pts[-1].lam)
     last = pts[-1]
     if abs(last.lam - target) > 1e-12 * abs(target):
         raise NonlinearSolveError(
-            f"the continuation from {abs(start.lam):.6g} stalled at {abs(last.lam):.6g} before the target "
-            f"{abs(target):.6g}", highest=abs(last.lam),
-            tried=f"Newton from the linear response, then continuation from {abs(start.lam):.6g}")
+            f"the continuation from {fmt(start.lam)} stalled at {fmt(last.lam)} before the target "
+            f"{fmt(target)}", highest=abs(last.lam),
+            tried=f"Newton from the linear response, then continuation from {fmt(start.lam)}")
     return Reached(last, abs(start.lam), steps, tuple(folds), family.solves, tuple(pts))
 
 
@@ -581,7 +599,8 @@ def _through_folds(family: Family, pts: list, target: float, eps: float, folds: 
     tr.set_scale(b.x, b.lam)
     t = tr.unit(b.x - a.x, b.lam - a.lam)
     p = b
-    prev_dir = math.copysign(1.0, t[-1])
+    start_dir = prev_dir = math.copysign(1.0, t[-1])
+    turns = 0
     out = []
     for _ in range(max(budget, 1)):
         q = tr.advance(p, t)
@@ -592,6 +611,11 @@ def _through_folds(family: Family, pts: list, target: float, eps: float, folds: 
         if d != prev_dir:
             folds.append(p.lam)
             prev_dir = d
+            turns += 1
+        if turns >= 2 and d == start_dir and len(out) >= 2 and abs(q.lam) > abs(out[-1].lam):
+            # through the folds and forward again: natural continuation goes on from here
+            out.append(q)
+            return out
         if (abs(p.lam) - abs(target)) * (abs(q.lam) - abs(target)) <= 0 and d > 0 \
                 and abs(q.lam) >= abs(target):
             tau = (target - p.lam) / (q.lam - p.lam)

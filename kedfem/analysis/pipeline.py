@@ -236,6 +236,7 @@ class _Run:
         self._stab_loss = None  # n -> the most the scheme lowers ln(rho) on n elements
         self._read: dict = {}  # (level index, output instants) -> (the level, what reading it computed)
         self._continue = None
+        self._need = 0       # time elements that resolve the excited modes (set by _run)
         self.path = ""       # how the non-linear response was reached, when not directly
         self.start = start   # a neighbour's response the first level starts from
         self.highest = None  # the highest speed the continuation reached, when it failed
@@ -273,12 +274,14 @@ class _Run:
         # warm start from the previous level only if its iteration converged: a coarse
         # level's diverged iterate (|mu| = 585 at 24 elements) sent every finer level
         # off to overflow, where each converges from the linear start
-        prev = self.levels[-1] if self.levels else None
-        x0 = prev.discrete.at(ti) if prob.state and prev is not None and prev.converged else None
+        prev = next((lv for lv in reversed(self.levels) if lv.converged), None)
+        x0 = prev.discrete.at(ti) if prob.state and prev is not None else None
         if prob.state and x0 is None and self.start is not None:
             x0 = phase_sample(self.start.sampler.discrete, ti, sc.period)
         out = prob.solve(x0, eps=eps, max_iter=sc.max_iter, method=sc.nonlinear_method)
-        if prob.state and not out.converged and sc.nonlinear_method == "newton":
+        if prob.state and not out.converged and sc.nonlinear_method == "newton" and n >= self._need:
+            # a level that resolves the excited modes: continuation in speed (on a coarser one the
+            # branch may turn where the finer ones run on; it is solved again from a finer level)
             out = self.homotopy(prob, out, eps)
         if prob.state and eps > sc.eps:  # what finish() needs to go on to the scene's eps
             self._continue = (prob, out)
@@ -289,11 +292,33 @@ class _Run:
         log.info("%s: level n=%d (%s) %d iteration(s) rho=%.4g %.3f s", sc.mech.name, n, scheme.name,
                  out.iterations, d.spectral_radius, prob.kinematics + prob.assembly + td - tc)
         self.levels.append(lv)
+        if lv.converged and prob.state:
+            self.backfill(eps)
         if self._bar is not None:
             self._bar.update(1)
             self._bar.set_postfix_str(f"{n} time elements, {prob.kinematics + prob.assembly + td - tc:.1f} s",
                                       refresh=True)
         return lv
+
+    def backfill(self, eps: float) -> None:
+        """Coarser levels whose iteration failed, solved again from the finest converged one (the
+        error estimate compares levels of the same response)."""
+        sc, fine = self.scene, self.levels[-1]
+        for i, lv in enumerate(self.levels[:-1]):
+            if lv.converged:
+                continue
+            ti = self.scheme.instants(lv.n, sc.period)
+            field = self.damping_field() if ti.size >= FIELD_INSTANTS else None
+            prob = PeriodicProblem(sc, self.model, self.cycle, self.scheme, lv.n, damping_field=field,
+                                   stiff=self.stiff)
+            t0 = time.perf_counter()
+            out = prob.solve(fine.discrete.at(ti), eps=eps, max_iter=sc.max_iter, method=sc.nonlinear_method)
+            if out.converged:
+                log.info("%s: level n=%d solved again from level n=%d", sc.mech.name, lv.n, fine.n)
+                self.levels[i] = _Level(lv.n, out.discrete, True, lv.iterations + out.iterations, out.history,
+                                        lv.kinematics + prob.kinematics, lv.assembly + prob.assembly,
+                                        lv.solve + time.perf_counter() - t0, out.caught)
+                self._obs = {k: v for k, v in self._obs.items() if k[0] != i}
 
     def homotopy(self, prob, failed, eps: float):
         """The level's response by continuation in speed when Newton from the linear response (or
@@ -312,7 +337,7 @@ class _Run:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             try:
-                r = reach(fam, w, eps=eps)
+                r = reach(fam, w, eps=eps, unit=(60.0 / (2 * math.pi), "rpm"))
             except NonlinearSolveError as e:
                 self.path = ("Newton's method from the linear response did not converge; " + str(e))
                 self.highest = e.highest
@@ -641,11 +666,12 @@ class _Run:
         return self._obs[key]
 
     def estimate(self, n_out: int, need: int = 0) -> accuracy.ErrorEstimate | None:
-        """Estimate of the finest level from the last two or three (``need``: resolution floor)."""
-        k = len(self.levels)
-        if k < 2:
+        """Estimate of the finest level from the last two or three converged ones (``need``:
+        resolution floor)."""
+        ok = [i for i, lv in enumerate(self.levels) if lv.converged]
+        if len(ok) < 2 or ok[-1] != len(self.levels) - 1:
             return None
-        idx = list(range(max(0, k - 3), k))
+        idx = ok[-3:]
         obs = [self.observe(i, n_out) for i in idx]
         est = accuracy.estimate([self.levels[i].n for i in idx], obs,
                                 assumed=accuracy.ASSUMED_RATE.get(self.scheme.name, 1.0),
@@ -683,6 +709,7 @@ class _Run:
         est = None
         need, f_res = self.resolution() if (sc.estimate or sc.steps is None) else (0, 0.0)
         need = int(math.ceil(need * scheme.per_period))
+        self._need = need
         self._stab_need, self._stab_f = self.stability_floor()
         if sc.steps is not None:
             n = scheme.check_elements(sc.steps)
@@ -729,7 +756,7 @@ class _Run:
                     if prev.converged:
                         break
                     failed += 1
-                if failed and sc.nonlinear_method == "newton":
+                if failed and sc.nonlinear_method == "newton" and self.levels[-1].n >= need:
                     break  # Newton and the continuation in speed failed: finer levels will not do better
                 if failed >= 3 or (failed >= 2 and self.levels[-2].n >= need):
                     # refining the time discretisation does not make a non-linear iteration
