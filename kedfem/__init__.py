@@ -27,4 +27,4 @@ from .analysis.campbell import CampbellResult, Crossing, campbell
 from .analysis.critical import CriticalSpeed, critical_speed
 from .io.design_plots import StabilityMap, stability_map
 from .analysis.continuation import Bifurcation, Branch, BranchPoint, continuation
-from .io.branch_files import write as write_branch
+from .io.branch_files import read as read_branch, write as write_branch

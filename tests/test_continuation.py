@@ -96,3 +96,14 @@ def test_branch_files(branch, tmp_path):
     rows = list(csv.DictReader(open(tmp_path / "branch_bifurcations.csv")))
     assert [r["kind"] for r in rows] == ["fold", "fold"]
     assert float(rows[0]["speed_rpm"]) == pytest.approx(branch.bifurcations[0].value / RPM)
+    # read back: the same points, peaks, verdicts and bifurcations (what the CSV holds)
+    back = kf.read_branch(tmp_path)
+    assert [p.value for p in back.points] == pytest.approx([p.value for p in branch.points], rel=1e-15)
+    assert [p.stable for p in back.points] == [p.stable for p in branch.points]
+    assert [p.peak("beam", "deflection") for p in back.points] == pytest.approx(
+        [p.peak("beam", "deflection") for p in branch.points], rel=1e-15)
+    assert [(b.kind, b.value, b.stable_after) for b in back.bifurcations] == \
+        [(b.kind, pytest.approx(b.value, rel=1e-15), b.stable_after) for b in branch.bifurcations]
+    assert back.first_loss_of_stability.value == pytest.approx(branch.first_loss_of_stability.value, rel=1e-15)
+    with pytest.raises(kf.InputError, match="branch"):
+        kf.read_branch(tmp_path / "nowhere")

@@ -198,8 +198,9 @@ class Branch:
         s, u = self._scale()
         v = self.values * s
         L = [f"{'period-2 ' if self.periods == 2 else ''}branch over {self.parameter} ({u}): {len(self.points)} "
-             f"points from {v[0]:.6g} to {v[-1]:.6g} ({v.min():.6g} .. {v.max():.6g}), {self.elements} "
-             f"{self.scheme} time elements per cycle, {self.solves} linear solves, {self.wall_time:.1f} s"]
+             f"points from {v[0]:.6g} to {v[-1]:.6g} ({v.min():.6g} .. {v.max():.6g})"
+             + (f", {self.elements} {self.scheme} time elements per cycle, {self.solves} linear solves, "
+                f"{self.wall_time:.1f} s" if self.elements else "")]
         for b in self.bifurcations:
             L.append("  " + b.describe(u, s))
         if not self.bifurcations:
@@ -330,7 +331,8 @@ def _peaks_of(scene_of, point: Point, periods: int) -> tuple:
 
 
 # ---------------------------------------------------------------------- tracking
-def _track(family: Family, p0: Point, p1: Point, lo: float, hi: float, max_points: int, eps: float, bar):
+def _track(family: Family, p0: Point, p1: Point, lo: float, hi: float, max_points: int, eps: float, bar,
+           unit: tuple = (1.0, "")):
     """Pseudo-arclength from two points until the parameter leaves ``[lo, hi]``; the points and
     the located bifurcations (as ``(Crossing, stable_before, stable_after)``)."""
     tr = Tracker(family, eps=eps)
@@ -360,7 +362,8 @@ def _track(family: Family, p0: Point, p1: Point, lo: float, hi: float, max_point
         pts.append(q)
         if bar is not None:
             bar.update(1)
-            bar.set_postfix_str(f"{q.lam:.5g}, rho {q.rho:.3g}", refresh=False)
+            bar.set_postfix_str(f"{q.lam * unit[0]:.5g}{' ' + unit[1] if unit[1] else ''}, rho {q.rho:.3g}",
+                                refresh=False)
         if (q.lam > hi if up else q.lam < hi) or (q.lam < lo if up else q.lam > lo):
             # the branch left the range: end it on the boundary
             bound = hi if (q.lam > hi if up else q.lam < hi) else lo
@@ -453,7 +456,8 @@ def continuation(scene, lo: float, hi: float, *, parameter: str = "speed", steps
             d *= 0.5
         if p1 is None:
             raise NonlinearSolveError(f"continuation: no second point near lo = {lo:.6g}", highest=lo)
-        pts, found, end = _track(family, p0, p1, lo, hi, max_points, eps, bar)
+        pts, found, end = _track(family, p0, p1, lo, hi, max_points, eps, bar,
+                                 (RPM_PER_RAD_S, "rpm") if parameter == "speed" else (1.0, unit))
     finally:
         bar.close()
     bifs = tuple(Bifurcation(c.kind, c.lam, c.bracket, c.multiplier, bool(sb), bool(sa)) for c, sb, sa in found)

@@ -20,7 +20,7 @@ from ..errors import InputError
 from .export import atomic_path
 from .sweep import csv_cells
 
-__all__ = ["to_csv", "plot", "write"]
+__all__ = ["to_csv", "plot", "write", "read"]
 
 RPM_PER_RAD_S = 60.0 / (2.0 * math.pi)
 
@@ -90,16 +90,21 @@ def plot(branch, path, quantity: str = "stress") -> Path:
         for link in br.links:
             y = np.array([p.peak(link, quantity) for p in br.points]) * scale
             c = colors.setdefault(link, f"C{len(colors) % 10}")
-            for k in range(len(x) - 1):
-                solid = stable[k] and stable[k + 1]
-                ax.plot(x[k:k + 2], y[k:k + 2], "-" if solid else "--", color=c if br.periods == 1 else "0.5",
+            # one line per run of equal stability (a dash pattern restarts on every line: short
+            # segments drawn one by one would all look solid)
+            seg = np.array([stable[k] and stable[k + 1] for k in range(len(x) - 1)], dtype=bool)
+            cuts = np.flatnonzero(np.diff(seg.astype(int))) + 1
+            for a, b in zip(np.r_[0, cuts], np.r_[cuts, seg.size]):
+                ax.plot(x[a:b + 1], y[a:b + 1], "-" if seg[a] else "--", color=c if br.periods == 1 else "0.5",
                         lw=1.8 if br.periods == 1 else 1.2)
             if br.periods == 1:
                 ax.plot([], [], "-", color=c, label=link)
+    marks = ax.get_xaxis_transform()  # x in data, y in axes fraction: the markers sit on the axis
+    for br in _branches(branch):
         for b in br.bifurcations:
             mark = {"fold": "o", "flip": "s", "neimark-sacker": "D"}[b.kind]
             ax.axvline(b.value * xs, color="0.6", lw=0.8, ls=":")
-            ax.plot([b.value * xs], [ax.get_ylim()[0]], mark, color="k", ms=6, clip_on=False)
+            ax.plot([b.value * xs], [0.02], mark, color="k", ms=6, transform=marks, clip_on=False)
     ax.plot([], [], "--", color="0.3", label="unstable")
     if branch.subharmonic is not None:
         ax.plot([], [], "-", color="0.5", label="period 2")
@@ -119,3 +124,75 @@ def write(branch, folder, plots: bool = True) -> list[Path]:
     if plots:
         out.append(plot(branch, folder / "response_curve.png"))
     return out
+
+
+def read(folder) -> "Branch":
+    """A branch back from the files :func:`write` made in ``folder`` (to plot it again or compare
+    it with another, without recomputing it).
+
+    What the CSV does not hold comes back empty: the points' multipliers (their spectral radius
+    is kept), the crank angles and stations of the peaks (nan), the results.
+
+    Parameters
+    ----------
+    folder : str or Path
+        Holds ``branch.csv`` and ``branch_bifurcations.csv``.
+
+    Returns
+    -------
+    Branch
+
+    Raises
+    ------
+    InputError
+        A file missing or not a branch file.
+    """
+    from ..analysis.continuation import Bifurcation, Branch, BranchPoint
+    from ..analysis.accuracy import LinkError
+    from ..analysis.results import LinkPeaks
+    folder = Path(folder)
+    pts_file, bif_file = folder / "branch.csv", folder / "branch_bifurcations.csv"
+    try:
+        with open(pts_file, newline="", encoding="utf-8") as f:
+            rows = list(csv.DictReader(f))
+        with open(bif_file, newline="", encoding="utf-8") as f:
+            bifs = list(csv.DictReader(f))
+    except (OSError, UnicodeDecodeError) as e:
+        raise InputError(f"read_branch: cannot read the branch files in {folder}: {e}") from None
+    if not rows or "point" not in rows[0] or "spectral_radius" not in rows[0]:
+        raise InputError(f"read_branch: {pts_file} is not a branch.csv (no rows, or no point/spectral_radius columns)")
+    value_key = next(k for k in rows[0] if k not in ("point",))
+    parameter = "speed" if value_key == "speed_rad_s" else value_key
+
+    def num(s):
+        return float(s) if s not in ("", None) else float("nan")
+
+    try:
+        groups: dict = {}
+        for r in rows:
+            groups.setdefault((int(r["periods"]), int(r["point"])), []).append(r)
+        branches = {}
+        for (periods, _k), rs in sorted(groups.items()):
+            peaks = tuple(LinkPeaks(r["link"], num(r["peak_deflection_m"]), math.nan, num(r["peak_stress_Pa"]),
+                                    math.nan, math.nan) for r in rs)
+            errs = tuple(LinkError(r["link"], num(r["deflection_time_error"]), num(r["stress_time_error"]), math.nan)
+                         for r in rs if r["deflection_time_error"] != "")
+            rho = num(rs[0]["spectral_radius"])
+            branches.setdefault(periods, []).append(BranchPoint(
+                num(rs[0][value_key]), peaks, errs, np.zeros(0, complex), rho, rs[0]["stable"] == "True", periods))
+        found: dict = {}
+        for b in bifs:
+            found.setdefault(int(b["periods"]), []).append(Bifurcation(
+                b["kind"], num(b[value_key]), (num(b["bracket_lo"]), num(b["bracket_hi"])),
+                complex(num(b["multiplier_re"]), num(b["multiplier_im"])), b["stable_before"] == "True",
+                b["stable_after"] == "True"))
+    except (KeyError, ValueError, StopIteration) as e:
+        raise InputError(f"read_branch: {folder} does not hold branch files as kedfem writes them ({e})") from None
+    if 1 not in branches:
+        raise InputError(f"read_branch: {pts_file} has no 1-periodic points")
+    unit = "rad/s" if parameter == "speed" else ""
+    sub = None
+    if 2 in branches:
+        sub = Branch(parameter, unit, tuple(branches[2]), tuple(found.get(2, ())), 0, "", 2)
+    return Branch(parameter, unit, tuple(branches[1]), tuple(found.get(1, ())), 0, "", 1, sub,
+                  f"read from {folder}")
