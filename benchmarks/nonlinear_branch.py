@@ -122,15 +122,15 @@ def part_newton(lines: list):
     print(lines[-2])
 
 
-def part_continuation(top: float, lines: list, only: str = ""):
-    lines += ["## 4. kf.continuation from 200 rpm", ""]
+def part_continuation(top: float, lines: list, only: str = "", lo: float = 200.0, max_points: int = 2000):
+    lines += [f"## 4. kf.continuation from {lo:g} rpm", ""]
     for label, make in scenes().items():
         if only and not label.lower().startswith(only):
             continue
         t0 = time.perf_counter()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            br = kf.continuation(make(200 * RPM), 200 * RPM, top * RPM, errors=False, max_points=2000,
+            br = kf.continuation(make(lo * RPM), lo * RPM, top * RPM, errors=False, max_points=max_points,
                                  progress=False)
         first = br.first_loss_of_stability
         lines += [f"### {label}", "", "```", br.describe(), "```", "",
@@ -157,6 +157,8 @@ def main(argv=None) -> int:
     ap.add_argument("--top", type=float, default=450.0, help="highest speed of part 1 [rpm]")
     ap.add_argument("--continuation-top", type=float, default=600.0)
     ap.add_argument("--out", default=OUT, help="markdown file written")
+    ap.add_argument("--continuation-lo", type=float, default=200.0)
+    ap.add_argument("--max-points", type=int, default=2000)
     ap.add_argument("--only", default="", help="part 4 for one damping only: modal or rayleigh")
     a = ap.parse_args(argv)
     parts = {int(p) for p in a.parts.split(",")}
@@ -172,7 +174,7 @@ def main(argv=None) -> int:
     if 3 in parts:
         part_newton(lines)
     if 4 in parts:
-        part_continuation(a.continuation_top, lines, a.only.lower())
+        part_continuation(a.continuation_top, lines, a.only.lower(), a.continuation_lo, a.max_points)
     if 5 in parts:
         part_mould(lines)
     lines.append(f"Total wall time {time.perf_counter() - t0:.0f} s.")

@@ -58,7 +58,8 @@ class NonlinearSolveError(KedError):
     response nor a continuation from a speed where it converges reached the scene.
 
     No result is returned (a diverged iterate is no answer). Attributes: ``highest`` (float or
-    None), the highest parameter value [rad/s for speed] at which the response converged;
+    None), the highest parameter value [rad/s for speed] this attempt's continuation reached
+    (the response may exist beyond it: :func:`kedfem.continuation` says where it ends);
     ``tried`` (str), what was tried.
     """
 

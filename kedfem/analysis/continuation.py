@@ -278,7 +278,7 @@ def _read(scene_of, point: Point, n: int, errors: bool, periods: int) -> BranchP
     mu = np.asarray(point.multipliers)
     rho = float(np.abs(mu).max()) if mu.size else 0.0
     res = None
-    if periods == 1:
+    if periods == 1 and errors:  # without errors the point's own discretisation is the answer
         sc = dataclasses.replace(scene_of(point.lam), steps=n, estimate=bool(errors))
         start = _as_result(sc, point)
         with warnings.catch_warnings():
@@ -291,7 +291,8 @@ def _read(scene_of, point: Point, n: int, errors: bool, periods: int) -> BranchP
     if res is not None and res.converged:
         errs = tuple(res.error.links) if res.error is not None else ()
         return BranchPoint(point.lam, tuple(res.peaks()), errs, mu, rho, rho < 1.0, periods, res)
-    return BranchPoint(point.lam, _peaks_of(scene_of, point, periods), (), mu, rho, rho < 1.0, periods, None)
+    peaks, res = _peaks_of(scene_of, point, periods)
+    return BranchPoint(point.lam, peaks, (), mu, rho, rho < 1.0, periods, res)
 
 
 def _as_result(scene, point: Point) -> PeriodicResult:
@@ -311,8 +312,9 @@ def _as_result(scene, point: Point) -> PeriodicResult:
 
 
 def _peaks_of(scene_of, point: Point, periods: int) -> tuple:
-    """Peaks of a point read from its own discretisation (no error estimate): a period-2 point,
-    or one whose :func:`solve` failed."""
+    """Peaks of a point read from its own discretisation (no error estimate: a point without
+    errors, a period-2 point, or one whose :func:`solve` failed), and the result they are read
+    from: ``(peaks, PeriodicResult or None)``."""
     from .pipeline import _Run
     sc = scene_of(point.lam)
     run = _Run(sc)
@@ -325,9 +327,9 @@ def _peaks_of(scene_of, point: Point, periods: int) -> tuple:
                          np.asarray(point.multipliers), bool(np.abs(point.multipliers).max() < 1.0), True, 0, (), 0.0,
                          Timings(0.0, 0.0, 0.0, 0.0), elements=point.discrete.n, periods=periods)
     try:
-        return tuple(res.peaks())
+        return tuple(res.peaks()), res
     except KedError:
-        return ()
+        return (), None
 
 
 # ---------------------------------------------------------------------- tracking
@@ -461,13 +463,18 @@ def continuation(scene, lo: float, hi: float, *, parameter: str = "speed", steps
     finally:
         bar.close()
     bifs = tuple(Bifurcation(c.kind, c.lam, c.bracket, c.multiplier, bool(sb), bool(sa)) for c, sb, sa in found)
-    points = tuple(_read(scene_of, p, n, errors, 1) for p in pts)
+    disable = None if progress is None else not progress
+    with tqdm(pts, desc="continuation: peaks and errors" if errors else "continuation: peaks", unit="point",
+              file=sys.stderr, delay=2.0, leave=False, disable=disable) as it:
+        points = tuple(_read(scene_of, p, n, errors, 1) for p in it)
     sub = None
     if period2:
         flip = next((c for c, sb, sa in found if c.kind == "flip"), None)
         if flip is not None:
             try:
-                sub = _period2(scene_of, scheme, n, flip, hi, eps, max_points, errors, t0)
+                with tqdm(desc="continuation: period 2", unit="point", file=sys.stderr, delay=2.0, leave=False,
+                          disable=disable) as bar2:
+                    sub = _period2(scene_of, scheme, n, flip, hi, eps, max_points, errors, t0, bar2)
             except KedError as e:
                 log.warning("continuation: the period-2 response past the flip at %.6g was not found: %s",
                             flip.lam, e)
@@ -484,7 +491,7 @@ def _start(family: Family, lam: float, eps: float) -> Point:
     return reach(family, lam, eps=eps).point
 
 
-def _period2(scene_of, scheme, n, flip, hi, eps, max_points, errors, t0) -> Branch:
+def _period2(scene_of, scheme, n, flip, hi, eps, max_points, errors, t0, bar=None) -> Branch:
     """The period-2 branch born at a flip: the problem over two cycles, started from the period-1
     orbit plus its flip mode, just past the flip, and followed to ``hi``."""
     fam1 = Family(scene_of, n, scheme)
@@ -519,7 +526,8 @@ def _period2(scene_of, scheme, n, flip, hi, eps, max_points, errors, t0) -> Bran
     if y is None:
         raise NonlinearSolveError("the period-2 response could not be continued", highest=x2.lam)
     x3 = Point(x2.lam + d, y, np.asarray(out.discrete.floquet_multipliers), discrete=out.discrete)
-    pts, found, end = _track(fam2, x2, x3, x2.lam, hi, max_points, eps, None)
+    pts, found, end = _track(fam2, x2, x3, x2.lam, hi, max_points, eps, bar,
+                             (RPM_PER_RAD_S, "rpm"))
     bifs = tuple(Bifurcation(c.kind, c.lam, c.bracket, c.multiplier, bool(sb), bool(sa)) for c, sb, sa in found)
     points = tuple(_read(scene_of, q, 2 * n, errors, 2) for q in pts)
     return Branch("speed", "rad/s", points, bifs, n, scheme.name, 2, None, end, time.perf_counter() - t0,

@@ -341,7 +341,7 @@ class _Run:
             except NonlinearSolveError as e:
                 self.path = ("Newton's method from the linear response did not converge; " + str(e))
                 self.highest = e.highest
-                log.warning("%s: %s", sc.mech.name, self.path)
+                log.info("%s: %s", sc.mech.name, self.path)  # the NonlinearSolveError says it
                 return failed
         rpm = 60.0 / (2 * math.pi)
         folds = (f", through folds at {', '.join(f'{abs(f) * rpm:.1f}' for f in r.folds)} rpm" if r.folds else "")
@@ -367,7 +367,8 @@ class _Run:
             tried = (f"the {sc.nonlinear_method} iteration on {'/'.join(str(lv.n) for lv in self.levels)} "
                      "time elements (and Anderson acceleration)")
             what = f"it did not converge within max_iter = {sc.max_iter} linear solves"
-        highest = (f"; the highest speed where it converged: {self.highest * rpm:.6g} rpm"
+        highest = (f"; this attempt's continuation got as far as {self.highest * rpm:.6g} rpm (the response may "
+                   "exist higher: the steps start from a fraction of the scene's speed)"
                    if self.highest is not None else "")
         nxt = ("kf.continuation(scene, lo, hi) (kedfem continuation SCENE --speeds LO:HI) follows the response "
                "over speed and says where it ends or loses its stability")
