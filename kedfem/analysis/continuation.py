@@ -325,7 +325,8 @@ def _peaks_of(scene_of, point: Point, periods: int) -> tuple:
     from .results import Sampler, Timings
     res = PeriodicResult(sc, run.model, motion, t, motion.crank_angle, U, V, tuple(run.model.dof_labels),
                          np.asarray(point.multipliers), bool(np.abs(point.multipliers).max() < 1.0), True, 0, (), 0.0,
-                         Timings(0.0, 0.0, 0.0, 0.0), elements=point.discrete.n, periods=periods)
+                         Timings(0.0, 0.0, 0.0, 0.0), elements=point.discrete.n, periods=periods,
+                         sampler=Sampler(run.cycle, point.discrete) if periods == 1 else None)
     try:
         return tuple(res.peaks()), res
     except KedError:
