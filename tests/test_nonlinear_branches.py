@@ -56,3 +56,17 @@ def test_a_fixed_point_iteration_that_fails_is_a_named_error():
         with pytest.raises(kf.NonlinearSolveError, match="did not converge within max_iter = 3") as e:
             kf.solve(scene(350, steps=24, nonlinear_method="fixed-point", max_iter=3))
     assert "nonlinear_method='newton'" in str(e.value)
+
+
+def test_the_command_line_exits_non_zero_and_writes_no_peaks(tmp_path):
+    """The same failure from `kedfem run`: a one-line named error, exit status non-zero, and no
+    output folder with peaks in it."""
+    import subprocess
+    import sys
+    (tmp_path / "s.toml").write_text('mechanism = "four_bar"\nspeed_rpm = 350\nsteps = 24\n'
+                                     '[solver]\nnonlinear_method = "fixed-point"\nmax_iter = 3\n')
+    r = subprocess.run([sys.executable, "-m", "kedfem.cli", "run", "s.toml", "--out", "out"],
+                       cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert r.returncode != 0
+    assert "no periodic response found at 350 rpm" in r.stderr and "Traceback" not in r.stderr
+    assert not list(tmp_path.rglob("peaks.csv"))

@@ -37,7 +37,7 @@ names or in brackets)::
     [solver]
     eps = 1e-6                          # Eq. 21 tolerance (fraction)
     max_iter = 50
-    nonlinear_method = "anderson"       # "fixed-point" | "relaxation" | "anderson"
+    nonlinear_method = "anderson"       # "newton" (default) | "fixed-point" | "relaxation" | "anderson"
     # delta = 1e-12                     # accuracy of each matrix exponential
 
     [output]
