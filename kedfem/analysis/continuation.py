@@ -356,6 +356,9 @@ def _track(family: Family, p0: Point, p1: Point, lo: float, hi: float, max_point
         kind = classify(p.multipliers, q.multipliers)
         if kind is not None:
             c = tr.locate(p, q, kind, lam_rtol=LOCATE_RTOL)
+            if (kind == "fold" and found and found[-1][0].kind == "fold" and found[-1][1] == found[-1][2]
+                    and abs(found[-1][0].lam - c.lam) <= 1e-3 * abs(c.lam)):
+                found.pop()  # the turn seen a step earlier is this fold: the multiplier's crossing locates it
             found.append((c, p.stable, q.stable))
         elif len(pts) >= 2 and math.copysign(1.0, p.tangent[-1]) != math.copysign(1.0, q.tangent[-1]):
             c = tr.fold_between(pts[-2], p, q)  # a fold where the stability does not change
