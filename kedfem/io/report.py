@@ -55,7 +55,8 @@ def _angle(a: float) -> str:
 
 
 def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_dir: Path | None,
-                   source: str, scene_time: float, mesh=None, fatigue=None, loads=None) -> str:
+                   source: str, scene_time: float, mesh=None, fatigue=None, loads=None,
+                   mesh_note: str = "") -> str:
     """The summary table of a result (what ``kedfem run`` prints and writes to ``summary.txt``)."""
     from .scenefile import scene_summary
     sc = res.scene
@@ -118,7 +119,7 @@ def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_di
                     st = f", stress {e.stress:.1e}" if e.stress is not None else ""
                     L.append(f"    {e.link:<16s} deflection {e.deflection:.1e}{st}")
         else:
-            L.append("  mesh error: not estimated (mesh check off, or the comparison mesh failed)")
+            L.append(f"  mesh error: not estimated ({mesh_note or 'no mesh check here: kf.mesh_error(res) makes one'})")
     else:
         L.append("peak response: no flexible links")
     if loads is not None:
@@ -312,10 +313,12 @@ def write_result(res, out_dir, *, plots: bool = True, csv: bool = True, npz: boo
         with stage("loads"):
             machine = res.loads()
     mesh = None
+    mesh_note = "mesh check off: --no-mesh-check, mesh_check=False"
     if mesh_check:
         from ..analysis.mesh_check import mesh_error
         with stage("mesh check"):
             mesh = mesh_error(res)
+        mesh_note = "the comparison mesh's solve failed: see the warning above"
     with RunFolder(out_dir, command, dict(scene=source)) as rf:
         staged = write_outputs(res, freqs, peaks, rf.path, stage, plots=plots, csv=csv, npz=npz, vtk=vtk,
                                render=render, modes=modes, scale=scale, every=every, dofs=tuple(dofs),
@@ -323,7 +326,7 @@ def write_result(res, out_dir, *, plots: bool = True, csv: bool = True, npz: boo
         files = [out_dir / Path(f).relative_to(rf.path) for f in staged]
         text = format_summary(res, freqs, peaks, stages=stage.times, files=files, out_dir=out_dir,
                               source=source, scene_time=time.perf_counter() - t0, mesh=mesh, fatigue=table,
-                              loads=machine)
+                              loads=machine, mesh_note=mesh_note)
         text += f"\n  summary.txt\n  {MANIFEST} (run {rf.run_id})"
         (rf.path / "summary.txt").write_text(text + "\n")
     return Report(out_dir, tuple(files) + (out_dir / "summary.txt",), text, rf.run_id)
