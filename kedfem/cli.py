@@ -434,23 +434,30 @@ def _cmd_export(args) -> int:
 
 # ------------------------------------------------------------------ list
 def _param_docs(module) -> dict[str, str]:
-    """First description line of each parameter of a mechanism (docstring, else DEFAULTS comments)."""
+    """First sentence of each parameter's description (docstring, else DEFAULTS comments)."""
     out: dict[str, str] = {}
     doc = inspect.getdoc(module.build) or ""
     lines = doc.splitlines()
     if "Parameters" in lines:
-        names: list[str] = []
+        groups: list[tuple[list[str], list[str]]] = []
         for line in lines[lines.index("Parameters") + 2:]:
             if not line.strip():
                 continue
             if not line.startswith(" "):
                 if " : " not in line:
                     break
-                names = [n.strip() for n in line.split(" : ")[0].split(",")]
+                groups.append(([n.strip() for n in line.split(" : ")[0].split(",")], []))
                 continue
+            if groups:
+                groups[-1][1].append(line.strip())
+        for names, text in groups:
+            words = " ".join(text)
+            end = re.search(r"\.(\s|$)", words)
+            first = words[:end.start() + 1] if end else words
+            if len(first) > 160:
+                first = first[:157].rstrip() + "..."
             for n in names:
-                out.setdefault(n, line.strip())
-            names = []
+                out.setdefault(n, first)
     try:
         src = inspect.getsource(module)
     except (OSError, TypeError):
