@@ -46,7 +46,7 @@ from ..fe.model import FEModel
 from ..motion.kinematics import Cycle
 from .problem import PeriodicProblem
 
-__all__ = ["Family", "Point", "Crossing", "Tracker", "damping_field", "classify", "MAX_POINTS"]
+__all__ = ["Family", "Point", "Crossing", "Tracker", "damping_field", "classify", "in_unit", "MAX_POINTS"]
 
 log = logging.getLogger(__name__)
 
@@ -495,6 +495,12 @@ def _extrapolate(pts: list, lam: float) -> np.ndarray:
     return b.x + (b.x - a.x) * ((lam - b.lam) / (b.lam - a.lam))
 
 
+def in_unit(value: float, unit: tuple = (1.0, ""), digits: int = 6) -> str:
+    """``value`` stated in ``unit`` = (factor, name): ``in_unit(41.8, (60 / (2 pi), "rpm"))`` ->
+    ``"399.2 rpm"`` (the magnitude: a negative speed runs the other way)."""
+    return f"{abs(value) * unit[0]:.{digits}g}" + (f" {unit[1]}" if unit[1] else "")
+
+
 def reach(family: Family, target: float, *, eps: float, lowest: float | None = None,
           max_steps: int = MAX_POINTS, unit: tuple = (1.0, "")) -> Reached:
     """The response at ``target`` by continuation from a parameter value where Newton's method
@@ -536,7 +542,7 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
     sign = 1.0 if target > 0 else -1.0
 
     def fmt(v: float) -> str:
-        return f"{abs(v) * unit[0]:.6g}" + (f" {unit[1]}" if unit[1] else "")
+        return in_unit(v, unit)
 
     lowest = abs(target) / 64 if lowest is None else abs(lowest)
     start = None

@@ -32,7 +32,7 @@ import numpy as np
 from ..checks import flag, integer, real
 from ..errors import InputError, KedError, NonlinearSolveError
 from ..solvers import schemes
-from .branch import Family, Point, Tracker, classify
+from .branch import Family, Point, Tracker, classify, in_unit
 from .results import LinkPeaks, PeriodicResult
 from .scene import Scene
 
@@ -334,6 +334,12 @@ def _peaks_of(scene_of, point: Point, periods: int) -> tuple:
 
 
 # ---------------------------------------------------------------------- tracking
+def _same_fold(found: list, c) -> bool:
+    """The last listed bifurcation is a fold within 1e-3 of the fold ``c`` (one fold seen twice:
+    as the turn of the parameter and as the multiplier's crossing of +1)."""
+    return bool(found) and found[-1][0].kind == "fold" and abs(found[-1][0].lam - c.lam) <= 1e-3 * abs(c.lam)
+
+
 def _track(family: Family, p0: Point, p1: Point, lo: float, hi: float, max_points: int, eps: float, bar,
            unit: tuple = (1.0, "")):
     """Pseudo-arclength from two points until the parameter leaves ``[lo, hi]``; the points and
@@ -356,20 +362,17 @@ def _track(family: Family, p0: Point, p1: Point, lo: float, hi: float, max_point
         kind = classify(p.multipliers, q.multipliers)
         if kind is not None:
             c = tr.locate(p, q, kind, lam_rtol=LOCATE_RTOL)
-            if (kind == "fold" and found and found[-1][0].kind == "fold" and found[-1][1] == found[-1][2]
-                    and abs(found[-1][0].lam - c.lam) <= 1e-3 * abs(c.lam)):
+            if kind == "fold" and _same_fold(found, c) and found[-1][1] == found[-1][2]:
                 found.pop()  # the turn seen a step earlier is this fold: the multiplier's crossing locates it
             found.append((c, p.stable, q.stable))
         elif len(pts) >= 2 and math.copysign(1.0, p.tangent[-1]) != math.copysign(1.0, q.tangent[-1]):
             c = tr.fold_between(pts[-2], p, q)  # a fold where the stability does not change
-            near = found and found[-1][0].kind == "fold" and abs(found[-1][0].lam - c.lam) <= 1e-3 * abs(c.lam)
-            if not near:  # (the crossing of the step before was this fold already)
+            if not _same_fold(found, c):  # (the crossing of the step before was this fold already)
                 found.append((c, p.stable, q.stable))
         pts.append(q)
         if bar is not None:
             bar.update(1)
-            bar.set_postfix_str(f"{q.lam * unit[0]:.5g}{' ' + unit[1] if unit[1] else ''}, rho {q.rho:.3g}",
-                                refresh=False)
+            bar.set_postfix_str(f"{in_unit(q.lam, unit, 5)}, rho {q.rho:.3g}", refresh=False)
         if (q.lam > hi if up else q.lam < hi) or (q.lam < lo if up else q.lam > lo):
             # the branch left the range: end it on the boundary
             bound = hi if (q.lam > hi if up else q.lam < hi) else lo

@@ -237,6 +237,7 @@ class _Run:
         self._read: dict = {}  # (level index, output instants) -> (the level, what reading it computed)
         self._continue = None
         self._need = 0       # time elements that resolve the excited modes (set by _run)
+        self._failed_problems: dict = {}  # n -> (instants, problem) of a level whose iteration failed
         self.path = ""       # how the non-linear response was reached, when not directly
         self.start = start   # a neighbour's response the first level starts from
         self.highest = None  # the highest speed the continuation reached, when it failed
@@ -267,9 +268,7 @@ class _Run:
         sc, scheme = self.scene, self.scheme
         eps = sc.eps if eps is None else max(eps, sc.eps)
         self._continue = None
-        ti = scheme.instants(n, sc.period)
-        field = self.damping_field() if ti.size >= FIELD_INSTANTS else None
-        prob = PeriodicProblem(sc, self.model, self.cycle, scheme, n, damping_field=field, stiff=self.stiff)
+        ti, prob = self.problem(n)
         tc = time.perf_counter()
         # warm start from the previous level only if its iteration converged: a coarse
         # level's diverged iterate (|mu| = 585 at 24 elements) sent every finer level
@@ -292,6 +291,8 @@ class _Run:
         log.info("%s: level n=%d (%s) %d iteration(s) rho=%.4g %.3f s", sc.mech.name, n, scheme.name,
                  out.iterations, d.spectral_radius, prob.kinematics + prob.assembly + td - tc)
         self.levels.append(lv)
+        if not lv.converged and prob.state:
+            self._failed_problems[n] = (ti, prob)  # assembled once: backfill() solves it again
         if lv.converged and prob.state:
             self.backfill(eps)
         if self._bar is not None:
@@ -307,10 +308,7 @@ class _Run:
         for i, lv in enumerate(self.levels[:-1]):
             if lv.converged:
                 continue
-            ti = self.scheme.instants(lv.n, sc.period)
-            field = self.damping_field() if ti.size >= FIELD_INSTANTS else None
-            prob = PeriodicProblem(sc, self.model, self.cycle, self.scheme, lv.n, damping_field=field,
-                                   stiff=self.stiff)
+            ti, prob = self._failed_problems.pop(lv.n, None) or self.problem(lv.n)
             t0 = time.perf_counter()
             out = prob.solve(fine.discrete.at(ti), eps=eps, max_iter=sc.max_iter, method=sc.nonlinear_method)
             if out.converged:
@@ -319,6 +317,16 @@ class _Run:
                                         lv.kinematics + prob.kinematics, lv.assembly + prob.assembly,
                                         lv.solve + time.perf_counter() - t0, out.caught)
                 self._obs = {k: v for k, v in self._obs.items() if k[0] != i}
+            else:
+                self._failed_problems[lv.n] = (ti, prob)
+
+    def problem(self, n: int):
+        """``(instants, PeriodicProblem)`` of the level on ``n`` time elements (modal damping from
+        the interpolated field on fine levels)."""
+        ti = self.scheme.instants(n, self.scene.period)
+        field = self.damping_field() if ti.size >= FIELD_INSTANTS else None
+        return ti, PeriodicProblem(self.scene, self.model, self.cycle, self.scheme, n, damping_field=field,
+                                   stiff=self.stiff)
 
     def homotopy(self, prob, failed, eps: float):
         """The level's response by continuation in speed when Newton from the linear response (or
@@ -328,6 +336,7 @@ class _Run:
         one when the continuation does not get there; :attr:`path` says what happened).
         """
         from .branch import Family, reach
+        from .campbell import RPM_PER_RAD_S
         from ..errors import NonlinearSolveError
         sc = self.scene
         w = sc.mech.drives[0].speed
@@ -337,13 +346,13 @@ class _Run:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             try:
-                r = reach(fam, w, eps=eps, unit=(60.0 / (2 * math.pi), "rpm"))
+                r = reach(fam, w, eps=eps, unit=(RPM_PER_RAD_S, "rpm"))
             except NonlinearSolveError as e:
                 self.path = ("Newton's method from the linear response did not converge; " + str(e))
                 self.highest = e.highest
                 log.info("%s: %s", sc.mech.name, self.path)  # the NonlinearSolveError says it
                 return failed
-        rpm = 60.0 / (2 * math.pi)
+        rpm = RPM_PER_RAD_S
         folds = (f", through folds at {', '.join(f'{abs(f) * rpm:.1f}' for f in r.folds)} rpm" if r.folds else "")
         self.path = (f"reached by continuation in speed from {r.start * rpm:.4g} rpm ({r.steps} steps{folds}; "
                      f"Newton from the linear response did not converge at {abs(w) * rpm:.4g} rpm)")

@@ -92,7 +92,7 @@ def plot(branch, path, quantity: str = "stress") -> Path:
             c = colors.setdefault(link, f"C{len(colors) % 10}")
             # one line per run of equal stability (a dash pattern restarts on every line: short
             # segments drawn one by one would all look solid)
-            seg = np.array([stable[k] and stable[k + 1] for k in range(len(x) - 1)], dtype=bool)
+            seg = stable[:-1] & stable[1:]  # a segment is stable when both its ends are
             cuts = np.flatnonzero(np.diff(seg.astype(int))) + 1
             for a, b in zip(np.r_[0, cuts], np.r_[cuts, seg.size]):
                 ax.plot(x[a:b + 1], y[a:b + 1], "-" if seg[a] else "--", color=c if br.periods == 1 else "0.5",
