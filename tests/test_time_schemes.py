@@ -274,10 +274,11 @@ def _straight_line_linkage(rpm):
 def test_spectral_radius_is_not_lowered_by_the_schemes_numerical_damping():
     """With 2 % modal damping and no parametric resonance the spectral radius is the least damped
     mode's decay over a cycle, exp(-zeta * integral of omega_1 dt) (adiabatic). Radau on the 48
-    elements the response needs damps that 105 Hz mode 5x more per cycle: the default solve,
-    whose verdict is not in doubt, says so in the error it gives the spectral radius (it printed
-    0.014 +- 1e-3 before the stability floor); on the elements the floor asks for, the spectral
-    radius is right."""
+    elements the peaks need damps that 105 Hz mode 5x more per cycle (it printed 0.014 +- 1e-3
+    before the stability floor); the default solve, whose verdict is not in doubt, stops below the
+    floor once its histories meet rtol too (192 elements) and its error band, which includes what
+    the numerical damping may hide, holds the truth; on the elements the floor asks for, the
+    spectral radius is right."""
     m = _straight_line_linkage(300)
     eff, z2 = ("inertia", "coupling", "axial_stiffening"), kf.ModalDamping(0.02)
     res = kf.solve(kf.Scene(m, effects=eff, damping=z2))
@@ -285,7 +286,11 @@ def test_spectral_radius_is_not_lowered_by_the_schemes_numerical_damping():
     expected = math.exp(-0.02 * 2 * math.pi * float(np.mean(f1)) * res.scene.period)
     st = res.stability
     assert st.verdict == "stable" and "not needed" in st.note
-    assert st.spectral_radius < 0.5 * expected <= expected <= st.spectral_radius + st.error, st.describe()
+    assert st.spectral_radius - st.error <= expected <= st.spectral_radius + st.error, st.describe()
+    # and on the 48 elements the peaks alone need, the band holds it too
+    coarse = kf.solve(kf.Scene(m, effects=eff, damping=z2, steps=48)).stability
+    assert coarse.spectral_radius < 0.5 * expected <= expected <= coarse.spectral_radius + coarse.error, \
+        coarse.describe()
     need = int(re.search(r"resolved from (\d+) elements", st.note).group(1))
     fine = kf.solve(kf.Scene(m, effects=eff, damping=z2, steps=need)).stability
     assert fine.spectral_radius == pytest.approx(expected, rel=1e-2), (fine.describe(), expected)

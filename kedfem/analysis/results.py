@@ -91,12 +91,17 @@ class Sampler:
 
 @dataclass(frozen=True)
 class Timings:
-    """Wall time [s] of the stages of a solve."""
+    """Wall time [s] of the stages of a solve.
+
+    ``forecast``: the whole solve's wall time [s] as forecast after its first level (a
+    tolerance-driven solve; None otherwise), to compare with ``total``.
+    """
 
     kinematics: float
     assembly: float
     solve: float
     total: float
+    forecast: float | None = None
 
 
 @dataclass(frozen=True)
@@ -911,7 +916,7 @@ class PeriodicResult:
             dist = np.abs(np.mod(self.t - t + 0.5 * period, period) - 0.5 * period)
             return int(np.argmin(dist))
 
-        names, d, da, s, sa, sj, dh, sh, has = [], [], [], [], [], [], [], [], []
+        names, d, da, s, sa, sj, dh, sh, has, nh = [], [], [], [], [], [], [], [], [], []
         for lk in links:
             p = pk[lk.name]
             names.append(lk.name)
@@ -925,9 +930,10 @@ class PeriodicResult:
             st = self.stations(lk.name, PEAK_STATIONS)
             sj.append(int(np.argmin(np.abs(st - p.stress_station))) if c else 0)
             sh.append(self.stress(lk.name, per_element=PEAK_STATIONS) if c else np.zeros((self.n, 0)))
+            nh.append(_on_stations(self._forces(lk.name, PEAK_STATIONS)[1]))
         return Observables(tuple(names), int(self.elements), np.array(d), np.array(da, dtype=int), np.array(s),
                            np.array(sa, dtype=int), np.array(sj, dtype=int), tuple(dh), tuple(sh),
-                           tuple(has))
+                           tuple(has), tuple(nh))
 
     # ----------------------------------------------------------- frequencies
     def frequencies(self, n_modes: int = 4, nodes=None) -> Frequencies:
