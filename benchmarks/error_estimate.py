@@ -8,7 +8,8 @@ compared with a converged answer: Radau IIA collocation on ``n_ref`` elements
 Gauss-Legendre collocation on the same number of elements (their agreement is
 printed as the reference's own uncertainty). Printed and written to
 ``benchmarks/results/error_estimate.{csv,md}``: per case and tolerance the
-time elements chosen, the wall time, the largest true and estimated relative
+time elements chosen, the wall time and the forecast of it the solve made after
+its first level (``res.timings.forecast``), the largest true and estimated relative
 errors of the peaks (deflection and stress of every flexible link), and the
 smallest ratio estimate / true over the quantities whose true error exceeds
 1e-7 (below it the comparison measures how well a peak is read between output
@@ -124,12 +125,13 @@ def run(quick: bool):
             seen = true > 1e-7
             ratio = est / np.maximum(true, 1e-300)
             row = dict(case=case, rtol=rtol, elements=res.elements, levels="/".join(map(str, res.error.levels)),
-                       wall_s=wall, true_max=float(true.max()), est_max=float(est.max()),
+                       wall_s=wall, forecast_s=float(res.timings.forecast or math.nan), true_max=float(true.max()), est_max=float(est.max()),
                        ratio_min=float(ratio[seen].min()) if seen.any() else float("inf"), ratio_max_big=float(ratio[big].max()) if big.any() else 0.0,
                        met=bool(res.error.met), within_rtol=bool(true.max() <= rtol), n_ref=n_ref,
                        ref_agreement=agree, worst=names[int(np.argmax(true))], warned=bool(warned))
             rows.append(row)
-            print(f"{case:36s} rtol {rtol:7.0e} n {res.elements:5d} ({row['levels']:>12s}) {wall:6.2f} s  "
+            print(f"{case:36s} rtol {rtol:7.0e} n {res.elements:5d} ({row['levels']:>12s}) {wall:6.2f} s "
+                  f"(forecast {row['forecast_s']:6.2f} s)  "
                   f"true {row['true_max']:8.1e} est {row['est_max']:8.1e}  est/true {row['ratio_min']:6.2f} .. "
                   f"{row['ratio_max_big']:6.2f}  {'ok' if row['within_rtol'] else 'OVER'}  "
                   f"(ref n={n_ref}, Radau vs Gauss {agree:.0e})", flush=True)
@@ -143,10 +145,10 @@ def write(rows, out_dir):
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
-    md = ["| case | rtol | elements | time [s] | true error | estimate | estimate / true | within rtol |",
-          "|---|---|---|---|---|---|---|---|"]
+    md = ["| case | rtol | elements | time [s] | forecast [s] | true error | estimate | estimate / true | "
+          "within rtol |", "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        md.append(f"| {r['case']} | {r['rtol']:.0e} | {r['elements']} | {r['wall_s']:.2f} | "
+        md.append(f"| {r['case']} | {r['rtol']:.0e} | {r['elements']} | {r['wall_s']:.2f} | {r['forecast_s']:.2f} | "
                   f"{r['true_max']:.1e} | {r['est_max']:.1e} | {r['ratio_min']:.2f} .. {r['ratio_max_big']:.2f} | "
                   f"{'yes' if r['within_rtol'] else '**no**'} |")
     ok_low = all(r["ratio_min"] >= 1 / 3 for r in rows)
@@ -154,12 +156,16 @@ def write(rows, out_dir):
     dflt = [r for r in rows if r["rtol"] == 1e-3]
     ok_default = all(r["ratio_min"] >= 1 / 3 and r["ratio_max_big"] <= 10 and r["within_rtol"] for r in dflt)
     ok_tol = all(r["within_rtol"] for r in rows)
+    fc = [r["forecast_s"] / r["wall_s"] for r in rows if math.isfinite(r["forecast_s"])]
+    fc_ok = sum(0.5 <= x <= 2.0 for x in fc)
     md.append("")
     md.append(f"At the default tolerance 1e-3 every case within it, with its estimate within 1/3 .. 10x of the "
               f"true error: {ok_default}. At every tolerance: ")
     md[-1] += (f"estimate >= 1/3 of the true error (above 1e-7): {ok_low}; <= 10x where the true error exceeds "
               f"1e-5: {ok_high}; every result within its tolerance: {ok_tol}. Cases marked * are not in the "
-              "catalogue (benchmarks/linkages.py).")
+              "catalogue (benchmarks/linkages.py). The forecast a solve makes after its first level is within "
+              f"2x of its wall time in {fc_ok} of {len(fc)} results (forecast / time {min(fc):.2f} .. "
+              f"{max(fc):.2f}).")
     with open(os.path.join(out_dir, "error_estimate.md"), "w") as f:
         f.write("\n".join(md) + "\n")
     print("\n".join(md[-1:]))

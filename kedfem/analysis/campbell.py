@@ -37,6 +37,7 @@ from ..errors import InputError
 from ..fe.effects import LINEAR_EFFECTS
 from ..model.mechanism import Mechanism
 from .modal import natural_frequencies
+from .progress import bar
 from .scene import Scene, _int
 
 __all__ = ["Crossing", "CampbellResult", "campbell", "crossings", "linear_effects", "scene_at", "cycle_frequencies",
@@ -375,7 +376,8 @@ def bands_of(freqs: np.ndarray) -> np.ndarray:
 
 
 def campbell(scene, speeds_rad_s, n_modes: int = 4, harmonics: int = 6, nodes: int = 36, *,
-             method: str = "modal", effects: Sequence[str] | None = None) -> CampbellResult:
+             method: str = "modal", effects: Sequence[str] | None = None,
+             progress: bool | None = None) -> CampbellResult:
     """Campbell diagram: the natural-frequency bands over the cycle at each speed, and the resonances.
 
     Parameters
@@ -400,6 +402,8 @@ def campbell(scene, speeds_rad_s, n_modes: int = 4, harmonics: int = 6, nodes: i
         nearest output instants).
     effects : sequence of str, optional
         Replace the scene's effects.
+    progress : bool, optional
+        A progress bar on stderr, one step per speed (default: on a terminal, after 2 s).
 
     Returns
     -------
@@ -420,10 +424,12 @@ def campbell(scene, speeds_rad_s, n_modes: int = 4, harmonics: int = 6, nodes: i
     freq = cycle_frequencies if method == "modal" else _solved_frequencies
     per_speed = []
     sc = None
-    for w in s:  # one modal analysis (or solve) per speed
-        sc = scene_at(scene, float(w), effects=effects, owner=owner)
-        per_speed.append(freq(sc, n_modes, nodes))
-        log.debug("campbell: %s at %.6g rad/s done", sc.mech.name, w)
+    with bar("campbell", "speed", s.size, progress) as b:
+        for w in s:  # one modal analysis (or solve) per speed
+            sc = scene_at(scene, float(w), effects=effects, owner=owner)
+            per_speed.append(freq(sc, n_modes, nodes))
+            log.debug("campbell: %s at %.6g rad/s done", sc.mech.name, w)
+            b.update(1)
     k = min(f.shape[1] for f in per_speed)
     if k < n_modes:
         log.warning("campbell: %s has %d elastic modes; %d asked", sc.mech.name, k, n_modes)

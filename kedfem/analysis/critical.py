@@ -59,6 +59,7 @@ import numpy as np
 from ..checks import choice, flag
 from ..errors import AccuracyWarning, ConvergenceWarning, InputError, KedError, UnboundedResponseError
 from .campbell import RPM_PER_RAD_S, cycle_frequencies, linear_effects, scene_at
+from .progress import bar
 from .scene import Scene, _int
 
 __all__ = ["Evaluation", "CriticalSpeed", "critical_speed", "KINDS"]
@@ -290,7 +291,7 @@ def itp_root(f, a: float, b: float, fa: float, fb: float, width: float, more=lam
 
 def critical_speed(scene, lo: float, hi: float, *, rtol: float = 5e-3, kind: str = "parametric",
                    linear: bool = False, scan: int = 0, max_solves: int = 14, nodes: int = 72,
-                   trust=None) -> CriticalSpeed:
+                   trust=None, progress: bool | None = None) -> CriticalSpeed:
     """Speed at which a linkage becomes parametrically unstable (or buckles), to a relative tolerance.
 
     Parameters
@@ -329,6 +330,9 @@ def critical_speed(scene, lo: float, hi: float, *, rtol: float = 5e-3, kind: str
         Crank positions per cycle of the buckling kind's modal analysis.
     trust : kedfem.trust.Trust, bool or targets, optional
         Code a scene dictionary may name besides catalogue mechanisms (:mod:`kedfem.trust`).
+    progress : bool, optional
+        A progress bar on stderr, one step per evaluation, with the speed and the value
+        (default: on a terminal, after 2 s).
 
     Returns
     -------
@@ -392,6 +396,8 @@ def critical_speed(scene, lo: float, hi: float, *, rtol: float = 5e-3, kind: str
                     log.warning("critical_speed at %.2f rpm: rho %.6g +- %.1e stays within its error of 1; its "
                                 "side is taken from rho", ev.rpm, ev.value, ev.error)
         evals.append(ev)
+        pbar.update(1)
+        pbar.set_postfix_str(f"{ev.rpm:.5g} rpm: {ev.value:.4g}", refresh=False)
         return ev
 
     def side(ev: Evaluation) -> int:
@@ -405,6 +411,12 @@ def critical_speed(scene, lo: float, hi: float, *, rtol: float = 5e-3, kind: str
                              f"{ev.error:.1e}, within its error of the threshold: move {name} away from it")
         return ev
 
+    with bar("critical speed", "solve" if kind == "parametric" else "speed", max_solves, progress) as pbar:
+        return _search(evaluate, definite, side, lo, hi, scan, kind, what, rtol, evals, max_solves, effects, base)
+
+
+def _search(evaluate, definite, side, lo, hi, scan, kind, what, rtol, evals, max_solves, effects, base):
+    """The bracketing and the ITP refinement of :func:`critical_speed`."""
     a = first = definite(evaluate(lo), "lo")
     side_lo = first.side
     b = None

@@ -251,6 +251,7 @@ class _Run:
         self._obs: dict[tuple[int, int], accuracy.Observables] = {}
         self._t_read = 0.0   # seconds spent reading levels for the estimate
         self.forecast_s = None  # the whole solve's wall time forecast after its first level [s]
+        self._more_levels = 0   # levels the forecast expects after the last one solved
         self.t_setup = time.perf_counter() - self.t0
 
     def damping_field(self) -> DampingField | None:
@@ -304,6 +305,8 @@ class _Run:
         if lv.converged and prob.state:
             self.backfill(eps)
         if self._bar is not None:
+            if self._bar.total is not None and self._bar.n >= self._bar.total:
+                self._bar.total = self._bar.n + 1  # a level more than the forecast expected
             self._bar.update(1)
             self._bar.set_postfix_str(f"{n} time elements, {prob.kinematics + prob.assembly + td - tc:.1f} s",
                                       refresh=True)
@@ -437,10 +440,12 @@ class _Run:
         read = (self._t_read / len(self._obs)) if self._obs else (
             self.levels[0].kinematics + self.levels[0].assembly + self.levels[0].solve)
         target = self.forecast_elements(need)
-        left, n = 0.0, lv.n
+        left, n, more = 0.0, lv.n, 0
         while n < target:
             n = self.scheme.refine(n)
             left += per * n + read
+            more += 1
+        self._more_levels = more
         # the estimate reads every level once: those solved so far that it has not read yet
         return left + read * max(0, len(self.levels) - len(self._obs))
 
@@ -814,6 +819,9 @@ class _Run:
                     self.forecast_s = time.perf_counter() - self.t0 + left
                     log.info("%s: forecast %.3g s (up to %d time elements)", sc.mech.name, self.forecast_s,
                              self.forecast_elements(need))
+                    if self._bar is not None:  # the levels expected (the bar runs on if more are needed)
+                        self._bar.total = 1 + self._more_levels
+                        self._bar.refresh()
                     if left > LONG_SOLVE:
                         log.warning("%s: this solve will take about %.0f s more (%d elastic DOFs, up to %d time "
                                     "elements per cycle: %.2f s per element measured on the first %d); a looser "

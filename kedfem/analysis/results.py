@@ -73,7 +73,13 @@ class Sampler:
             folded = np.zeros((M, C.shape[1]), dtype=complex)
             np.add.at(folded, kk % M, shifted)
             return (np.fft.ifft(folded, axis=0) * M).real
-        ph = np.exp(1j * (2.0 * math.pi / period) * np.outer(t, np.arange(C.shape[0])))
+        # exp(i k w t) by products of exp(i w t): a quarter of the time of an exponential per
+        # entry, within 1e-12 of it over the 1025 harmonics of the default grid
+        ph = np.empty((t.size, C.shape[0]), dtype=complex)
+        ph[:, 0] = 1.0
+        if C.shape[0] > 1:
+            ph[:, 1:] = np.exp(1j * (2.0 * math.pi / period) * t)[:, None]
+            np.cumprod(ph[:, 1:], axis=1, out=ph[:, 1:])
         return (ph @ C).real
 
     def at(self, t):
@@ -835,29 +841,32 @@ class PeriodicResult:
         period = self.scene.period
         t = self.t
         n = t.size
-        windows = []  # (series index, instants)
+        windows = []  # (series index, window centre on the grid)
         for si, (i, kind, vals) in enumerate(series):
             flat = vals if vals.ndim == 1 else vals.max(axis=1)
             loc = np.flatnonzero((flat >= np.roll(flat, 1)) & (flat >= np.roll(flat, -1)))
             loc = loc[np.argsort(-flat[loc])][:candidates]
-            for k in loc:
-                tl = t[k - 1] if k > 0 else t[-1] - period
-                tr = t[k + 1] if k + 1 < n else t[0] + period
-                windows.append((si, np.linspace(tl, tr, 2 * sub + 1)))
+            windows.extend((si, int(k)) for k in loc)
         if not windows:
             return best
-        allt = np.concatenate([w for _si, w in windows])
-        fine = self.resample(np.mod(allt, period))
+        # a link's deflection and stress (and neighbouring links) often peak at the same instant:
+        # each window centre is read once
+        centres = sorted({k for _si, k in windows})
+        where = {k: r for r, k in enumerate(centres)}
+        m = 2 * sub + 1
+        tw_all = np.array([np.linspace(t[k - 1] if k > 0 else t[-1] - period,
+                                       t[k + 1] if k + 1 < n else t[0] + period, m) for k in centres])
+        fine = self.resample(np.mod(tw_all.ravel(), period))
         cache = {}
         for si, (i, kind, vals) in enumerate(series):
             name = links[i].name
             cache[si] = (np.abs(fine.deflection(name, 0.5, relative_to="chord")) if kind == "deflection"
                          else fine.stress(name, per_element=PEAK_STATIONS))
-        pos = 0
         out = dict(best)
-        for si, tw in windows:
-            vals = cache[si][pos:pos + tw.size]
-            pos += tw.size
+        for si, k in windows:
+            r = where[k]
+            tw = tw_all[r]
+            vals = cache[si][r * m:(r + 1) * m]
             v, tt, j = _grid_peak(vals, tw)
             if v > out[si][0]:
                 out[si] = (v, float(np.mod(tt, period)), j)

@@ -385,8 +385,9 @@ class _LoopModel:
         c, sn = np.cos(th), np.sin(th)
         return np.stack([c * a[:, 0] - sn * a[:, 1], sn * a[:, 0] + c * a[:, 1]], axis=-1)
 
-    def residual(self, theta, s):
-        w = self.edge_vectors(theta, s)
+    def residual(self, theta, s, w=None):
+        """Loop-closure and weld residuals, shape (..., n_eq) (``w``: the edge vectors, when known)."""
+        w = self.edge_vectors(theta, s) if w is None else w
         loop = np.einsum("ce,...ed->...cd", self.D, w).reshape(theta.shape[:-1] + (-1,))
         if self.welds:
             wv = np.stack([theta[..., i] - (theta[..., j] if j >= 0 else 0.0)
@@ -395,9 +396,10 @@ class _LoopModel:
             loop = np.concatenate([loop, wv], axis=-1)
         return loop
 
-    def jacobian(self, theta, s):
-        """d residual / d (all members' angles, sliders), shape (..., n_eq, nm + ns)."""
-        w = self.edge_vectors(theta, s)
+    def jacobian(self, theta, s, w=None):
+        """d residual / d (all members' angles, sliders), shape (..., n_eq, nm + ns) (``w``: the edge
+        vectors, when known)."""
+        w = self.edge_vectors(theta, s) if w is None else w
         lead = theta.shape[:-1]
         nm, ns = len(self.member_names), len(self.slider_names)
         nc = len(self.chords)
@@ -472,12 +474,12 @@ def _newton(model, y, th_drive, cols, tol, max_iter=12):
     res_norm = np.inf
     for _ in range(max_iter):
         theta, s = _split(model, y, th_drive)
-        res = model.residual(theta, s)
+        w = model.edge_vectors(theta, s)
+        res = model.residual(theta, s, w)
         res_norm = float(np.max(np.abs(res))) if res.size else 0.0
+        J = model.jacobian(theta, s, w)[:, cols]
         if res_norm <= tol:
-            J = model.jacobian(theta, s)[:, cols]
             return y, True, res_norm, J
-        J = model.jacobian(theta, s)[:, cols]
         try:
             dy = np.linalg.solve(J, -res)
         except np.linalg.LinAlgError:
@@ -489,14 +491,14 @@ def _newton(model, y, th_drive, cols, tol, max_iter=12):
 def _rates(model, theta, s, th_drive_rate, cols):
     """Velocities and accelerations of the unknowns for all nodes at once."""
     n = theta.shape[0]
-    J = model.jacobian(theta, s)  # (n, neq, nm+ns)
+    w = model.edge_vectors(theta, s)
+    J = model.jacobian(theta, s, w)  # (n, neq, nm+ns)
     Ju = J[:, :, cols]
     Jd = J[:, :, model.drive_idx]
     rhs_v = -np.einsum("nek,nk->ne", Jd, th_drive_rate)
     yd = np.linalg.solve(Ju, rhs_v[..., None])[..., 0]
     omega, sd = _split(model, yd, th_drive_rate)
     # acceleration: J [alpha; s''] = sum_loops D omega_e^2 w_e  (constant drive speed)
-    w = model.edge_vectors(theta, s)
     mem = model.edge_member >= 0
     om_e = np.zeros((n, len(model.edges)))
     om_e[:, mem] = omega[:, model.edge_member[mem]]
@@ -619,11 +621,12 @@ class Cycle:
         ok = False
         for _ in range(8):
             theta, s = _split(model, y, thd)
-            res = model.residual(theta, s)
+            w = model.edge_vectors(theta, s)
+            res = model.residual(theta, s, w)
             if np.max(np.abs(res)) <= tol:
                 ok = True
                 break
-            J = model.jacobian(theta, s)[:, :, cols]
+            J = model.jacobian(theta, s, w)[:, :, cols]
             try:
                 y = y + np.linalg.solve(J, -res[..., None])[..., 0]
             except np.linalg.LinAlgError:
