@@ -22,6 +22,7 @@ Run from the repository root::
 
     python benchmarks/error_estimate.py            # all cases (~10-20 min)
     python benchmarks/error_estimate.py --quick    # three cases, two tolerances
+    python benchmarks/error_estimate.py --only stephenson   # some cases, printed only
 """
 
 from __future__ import annotations
@@ -102,10 +103,12 @@ def reference(mech, kw, n_ref):
     return names, a, float(np.max(np.abs(b / a - 1)))
 
 
-def run(quick: bool):
+def run(quick: bool, only=None):
     rows = []
     tols = (1e-2, 1e-3) if quick else (1e-2, 1e-3, 1e-4, 1e-5)
     for case, (mech, kw) in cases(quick).items():
+        if only and not any(o in case for o in only):
+            continue
         results = {}
         for rtol in tols:
             t0 = time.perf_counter()
@@ -176,9 +179,12 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="three cases, two tolerances")
     ap.add_argument("--out", default=os.path.join(HERE, "results"), help="output folder")
+    ap.add_argument("--only", action="append", help="cases whose name contains this (repeatable); the "
+                    "results are printed, not written")
     args = ap.parse_args(argv)
-    rows = run(args.quick)
-    write(rows, args.out)
+    rows = run(args.quick, args.only)
+    if not args.only:
+        write(rows, args.out)
     return 0
 
 

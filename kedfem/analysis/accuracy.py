@@ -351,9 +351,11 @@ def estimate(levels: list[int], obs: list[Observables], *, assumed: float,
     order = assumed if order is None else max(float(order), assumed)
     settled = False
     if len(o) == 3:
-        d1 = float(_peak_differences(o[1], o[0]).max())
+        pk1 = _peak_differences(o[1], o[0])
+        hi1 = _history_differences(o[1], o[0])
+        d1 = float(pk1.max())
         p_pk, asym = _rate(n, d1, float(pk.max()), assumed, order)
-        h1 = float(_history_differences(o[1], o[0]).max())
+        h1 = float(hi1.max())
         largest = SAFETY * max(d1, h1, float(pk.max()), float(hi.max()))
         settled = rtol is not None and largest <= SETTLED_FRACTION * rtol
         p_hi, _ = _rate(n, h1, float(hi.max()), assumed, order)
@@ -365,6 +367,12 @@ def estimate(levels: list[int], obs: list[Observables], *, assumed: float,
         if asym and not (math.isfinite(r_hi) and r_hi >= HISTORY_FRACTION * order):
             asym = False
             p_pk = min(max(p_pk, 1.0), assumed)  # credited as before the asymptotic range
+        if settled and not asym:
+            # settled before the asymptotic range, where a quantity may stall between the two
+            # finest levels: each is credited rate 1 on the larger of its two differences (the
+            # estimate stays far inside rtol, and it does not under-state a stall)
+            pk, hi = np.maximum(pk, pk1), np.maximum(hi, hi1)
+            p_pk = p_hi = 1.0
     else:
         p_pk = p_hi = assumed
         asym = False

@@ -62,6 +62,9 @@ BAND_INSTANTS = 12
 STAB_MARGIN = 0.25
 #: seconds of forecast remaining work beyond which a solve warns before it goes on
 LONG_SOLVE = 60.0
+#: the forecast's read-out of a level for the estimate, before one is measured, as a share of
+#: the level's solve (the catalogue: 0.1 .. 1)
+READ_SHARE = 0.5
 #: a spectral radius below this, even raised by the most the numerical damping can have lowered
 #: it, is stable beyond doubt: the stability floor is not pursued (:meth:`_Run.stable_beyond_doubt`);
 #: the verdict needs a margin to 1, not the radius to rtol (the slider-crank at 0.5 % damping:
@@ -250,7 +253,7 @@ class _Run:
         self._grids: dict[int, tuple] = {}
         self._obs: dict[tuple[int, int], accuracy.Observables] = {}
         self._t_read = 0.0   # seconds spent reading levels for the estimate
-        self.forecast_s = None  # the whole solve's wall time forecast after its first level [s]
+        self.forecast_s = None  # the whole solve's wall time as forecast after its second level [s]
         self._more_levels = 0   # levels the forecast expects after the last one solved
         self.t_setup = time.perf_counter() - self.t0
 
@@ -410,9 +413,36 @@ class _Run:
         """
         lv = self.levels[-1]
         target = max(4 * lv.n if len(self.levels) < 3 else lv.n, need)
+        if len(self.levels) == 2:
+            target = max(target, self._elements_for_rtol())
         if self._stab_need > target and not self._doubt_cleared(target):
             target = self._stab_need
         return min(target, MAX_STEPS)
+
+    def _elements_for_rtol(self) -> int:
+        """The finest level the tolerance is likely to need, from the first two levels.
+
+        Their largest relative difference of displacements over the cycle, as the estimate
+        credits it (the scheme's assumed rate), extrapolated at the scheme's order
+        between element ends until it is below ``rtol``; a rough guide for the forecast only
+        (the peaks' stresses and the asymptotic range decide the refinement).
+        """
+        a, b = self.levels[-2], self.levels[-1]
+        sc, scheme = self.scene, self.scheme
+        if sc.rtol is None or not (a.converged and b.converged):
+            return b.n
+        t = np.arange(64) * (sc.period / 64)
+        X, Y = a.discrete.at(t)[0], b.discrete.at(t)[0]
+        scale = float(np.abs(Y).max())
+        if not (scale > 0 and np.all(np.isfinite(X)) and np.all(np.isfinite(Y))):
+            return b.n
+        diff = float(np.abs(Y - X).max()) / scale
+        ratio = b.n / a.n
+        err = accuracy.SAFETY * diff / (ratio ** accuracy.ASSUMED_RATE.get(scheme.name, 1.0) - 1.0)
+        order, n = max(float(scheme.dense_order), 1.0), scheme.refine(b.n)
+        while err * (b.n / n) ** order > sc.rtol and n < MAX_STEPS:
+            n = scheme.refine(n)
+        return n
 
     def _doubt_cleared(self, n: int) -> bool:
         """The last level's verdict would be beyond doubt on ``n`` elements (see
@@ -430,20 +460,23 @@ class _Run:
 
         The refinement doubles until three levels agree and the finest resolves the modes the drive
         excites (``need`` elements) and, unless the verdict is beyond doubt, the stability floor.
-        A level on ``n`` elements costs the last level's kinematics, assembly and solve scaled by
-        ``n`` (a first level of a few elements also carries costs that do not grow with ``n``,
-        which errs long) plus the read-out of its peaks for the estimate, as measured or, before
-        any, as long as the first level.
+        A level on ``n`` elements costs ``a + b n`` (kinematics, assembly and solve) through the
+        last two levels, or ``b n`` from the first alone (which errs long: a few elements also
+        carry costs that do not grow with ``n``), plus the read-out of its peaks for the
+        estimate, as measured or, before any, :data:`READ_SHARE` of the last level.
         """
         lv = self.levels[-1]
-        per = (lv.kinematics + lv.assembly + lv.solve) / lv.n
-        read = (self._t_read / len(self._obs)) if self._obs else (
-            self.levels[0].kinematics + self.levels[0].assembly + self.levels[0].solve)
+        cost = [x.kinematics + x.assembly + x.solve for x in self.levels[-2:]]
+        per, fixed = cost[-1] / lv.n, 0.0
+        if len(cost) == 2 and self.levels[-2].n < lv.n:  # a level's cost a + b n, through the last two
+            per = max((cost[1] - cost[0]) / (lv.n - self.levels[-2].n), 0.0)
+            fixed = max(cost[1] - per * lv.n, 0.0)
+        read = (self._t_read / len(self._obs)) if self._obs else READ_SHARE * cost[0]
         target = self.forecast_elements(need)
         left, n, more = 0.0, lv.n, 0
         while n < target:
             n = self.scheme.refine(n)
-            left += per * n + read
+            left += fixed + per * n + read
             more += 1
         self._more_levels = more
         # the estimate reads every level once: those solved so far that it has not read yet
@@ -455,6 +488,11 @@ class _Run:
             return
         sc = self.scene
         prob, out = self._continue
+        if out.converged and out.history and out.history[-1] <= sc.eps:
+            # its last change already meets the scene's eps: the iteration run at eps would have
+            # stopped on the same iterate (a Newton step of 8e-7 then costs no fifth solve)
+            self._continue = None
+            return
         lv = self.levels[-1]
         t0 = time.perf_counter()
         out = prob.polish(out, eps=sc.eps, max_iter=sc.max_iter)
@@ -814,6 +852,13 @@ class _Run:
             believed = False
             while True:
                 lv = self.level(n, eps=eps_level)
+                if len(self.levels) == 2:  # a difference to extrapolate: the forecast again
+                    self.forecast_s = time.perf_counter() - self.t0 + self.forecast(need)
+                    log.info("%s: forecast after two levels %.3g s (up to %d time elements)", sc.mech.name,
+                             self.forecast_s, self.forecast_elements(need))
+                    if self._bar is not None and self._bar.total is not None:
+                        self._bar.total = 2 + self._more_levels
+                        self._bar.refresh()
                 if len(self.levels) == 1:
                     left = self.forecast(need)
                     self.forecast_s = time.perf_counter() - self.t0 + left

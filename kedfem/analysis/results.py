@@ -99,8 +99,8 @@ class Sampler:
 class Timings:
     """Wall time [s] of the stages of a solve.
 
-    ``forecast``: the whole solve's wall time [s] as forecast after its first level (a
-    tolerance-driven solve; None otherwise), to compare with ``total``.
+    ``forecast``: the whole solve's wall time [s] as forecast after its second level (its
+    first when it has one; a tolerance-driven solve; None otherwise), to compare with ``total``.
     """
 
     kinematics: float

@@ -43,6 +43,49 @@ class Scatter:
         self._scatter_cache[gname] = (mat, vec)
         return mat, vec
 
+    def _sub_operator(self, gname: str, cols: np.ndarray):
+        """Segment sums of a group's element matrices restricted to element columns ``cols``."""
+        key = (gname, cols.tobytes())
+        if key not in self._scatter_cache:
+            colarr = self._static_layout(gname)[0][:, cols]
+            N = self.n_dof
+            r, c = colarr[:, :, None], colarr[:, None, :]
+            flat, keep = (r * N + c).reshape(-1), ((r < N) & (c < N)).reshape(-1)
+            idx = np.flatnonzero(keep)
+            tgt = flat[idx]
+            order = np.argsort(tgt, kind="stable")
+            idx, tgt = idx[order], tgt[order]
+            starts = np.flatnonzero(np.r_[True, tgt[1:] != tgt[:-1]]) if tgt.size else np.zeros(0, int)
+            self._scatter_cache[key] = (idx, starts, tgt[starts])
+        return self._scatter_cache[key]
+
+    def _scatter_active(self, gname: str, data: np.ndarray, out: np.ndarray) -> None:
+        """Scatter of wide element matrices by the columns each instant actually uses.
+
+        The maps of the elements at a block span every node of the member it slides on, but
+        at an instant only the element under the block carries entries: a handful of the
+        ``m`` columns (the Whitworth's: 12 of 57). Instants with the same active columns are
+        scattered together through a plan for those columns alone; the entries left out are
+        zeros, so the sums are those of the full scatter.
+        """
+        nt, _n_el, m, _m = data.shape
+        nz = data != 0.0
+        active = nz.any(axis=(1, 2)) | nz.any(axis=(1, 3))  # (nt, m)
+        patterns, which = np.unique(active, axis=0, return_inverse=True)
+        which = np.ravel(which)
+        N = self.n_dof
+        flat_out = out.reshape(nt, N * N)
+        for k, pat in enumerate(patterns):
+            cols = np.flatnonzero(pat)
+            if not cols.size:
+                continue
+            rows = np.flatnonzero(which == k)
+            sub = data[rows][:, :, cols][:, :, :, cols]
+            idx, starts, targets = self._sub_operator(gname, cols)
+            if idx.size:
+                flat_out[rows[:, None], targets[None, :]] += np.add.reduceat(
+                    sub.reshape(rows.size, -1)[:, idx], starts, axis=1)
+
     @staticmethod
     def _segment_add(plan, data2d, out2d):
         idx, starts, targets = plan
@@ -59,6 +102,9 @@ class Scatter:
         N = self.n_dof
         if out is None:
             out = np.zeros((nt, N, N))
+        if gname.endswith("#wide") and data.shape[0] > 1 and out.flags.c_contiguous:
+            self._scatter_active(gname, data, out)
+            return out
         self._segment_add(mat, np.ascontiguousarray(data).reshape(nt, -1), out.reshape(nt, N * N))
         return out
 

@@ -402,13 +402,14 @@ def newton(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter: int
         if ct < best[0]:
             best = (ct, x, sol, d, dU, nU)
     _c, x, sol, d, dU, nU = best
-    phi = phi_of(x) if merit is not None else float(np.linalg.norm(d))
+    phi = None  # the merit of x: evaluated only when a line search needs it (it costs an assembly)
     lam = 1.0
     converged, message = False, ""
     while True:
         change = 0.0 if dU == 0.0 else (dU / nU if nU > 0 else math.inf)
         history.append(change)
-        log.debug("newton: solve %d change %.3e merit %.3e lambda %.3g", solves, change, phi, lam)
+        log.debug("newton: solve %d change %.3e merit %s lambda %.3g", solves, change,
+                  "-" if phi is None else f"{phi:.3e}", lam)
         if change <= eps:
             converged = True
             message = f"converged after {solves} linear solves (change {change:.2e} <= eps {eps:.1e})"
@@ -416,6 +417,8 @@ def newton(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter: int
         if solves >= max_iter:
             message = f"not converged after {max_iter} linear solves (last change {change:.2e} > eps {eps:.1e})"
             break
+        if phi is None:
+            phi = phi_of(x) if merit is not None else float(np.linalg.norm(d))
         lam = min(1.0, 4.0 * lam)  # after a damped step, try a longer one
         accepted, trials = False, 0
         while lam >= lambda_min and trials < MAX_TRIALS:
