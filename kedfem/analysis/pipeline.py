@@ -34,9 +34,10 @@ from ..fe.damping import ModalDamping
 from ..errors import AccuracyWarning, EffectWarning, InputError
 from ..motion.kinematics import Cycle, kinematics
 from ..fe.modal_damping import DampingField
+from ..fe.slots import node_crossings
 from ..solvers.threads import one_blas_thread
 from .plausibility import check_passive_links, check_result
-from .problem import PeriodicProblem, constant_or_sampled
+from .problem import PeriodicProblem, constant_or_sampled, snapped_edges
 from .results import PeriodicResult, Sampler, Stability, Timings, stability_verdict
 from .scene import MAX_STEPS, Scene
 
@@ -251,6 +252,7 @@ class _Run:
         self.start = start   # a neighbour's response the first level starts from
         self.highest = None  # the highest speed the continuation reached, when it failed
         self._grids: dict[int, tuple] = {}
+        self._breaks = None  # instants of kinks in the data (see breaks())
         self._obs: dict[tuple[int, int], accuracy.Observables] = {}
         self._t_read = 0.0   # seconds spent reading levels for the estimate
         self.forecast_s = None  # the whole solve's wall time as forecast after its second level [s]
@@ -337,11 +339,22 @@ class _Run:
     def problem(self, n: int):
         """``(instants, PeriodicProblem)`` of the level on ``n`` time elements (modal damping from
         the interpolated field on fine levels)."""
-        ti = self.scheme.instants(n, self.scene.period)
+        edges = snapped_edges(n, self.scene.period, self.breaks()) if self.scheme.graded else None
+        ti = self.scheme.instants(n, self.scene.period, edges)
         several = self.scene.steps is None or self.scene.estimate
         field = self.damping_field() if (ti.size >= FIELD_INSTANTS or several) else None
         return ti, PeriodicProblem(self.scene, self.model, self.cycle, self.scheme, n, damping_field=field,
-                                   stiff=self.stiff)
+                                   stiff=self.stiff, edges=edges, kinks=self.breaks() if edges is not None else None)
+
+    def breaks(self) -> np.ndarray:
+        """Instants [s] where the data has a kink in time: a block crossing a node of its
+        flexible link (:func:`kedfem.fe.slots.node_crossings`); element edges go there."""
+        if self._breaks is None:
+            self._breaks = node_crossings(self.model, self.cycle, self.scene.period)
+            if self._breaks.size:
+                log.info("%s: %d instants where a block crosses a node of its link: element edges there",
+                         self.scene.mech.name, self._breaks.size)
+        return self._breaks
 
     def homotopy(self, prob, failed, eps: float):
         """The level's response by continuation in speed when Newton from the linear response (or

@@ -130,6 +130,37 @@ def mass_scale(M, n: int, N: int) -> np.ndarray:
     return 1.0 / np.where(d > 0, d, np.max(d))
 
 
+#: an element's end stage on a kink of the data reads it this fraction of the element earlier
+LEFT_LIMIT = 1e-7
+
+
+def snapped_edges(n: int, period: float, breaks) -> np.ndarray | None:
+    """Element edges [s] (n + 1,): the uniform ones, each moved onto the nearest instant of
+    ``breaks`` (where the data has a kink) that is nearer to it than to its neighbours.
+
+    The number of elements stays ``n`` (the levels of a solve keep their ratio of two); no
+    edge moves by more than half an element. None when there is nothing to snap, or fewer
+    than two elements per break (the coarse levels of a solve stay uniform).
+    """
+    b = np.asarray(breaks, dtype=float)
+    if b.size == 0 or n < 2 * b.size:
+        return None
+    h = period / n
+    edges = np.arange(n + 1) * h
+    k = np.clip(np.rint(b / h).astype(int), 1, n - 1)
+    taken: set[int] = set()
+    for i in np.argsort(np.abs(b - k * h)):  # the nearest breaks first
+        for kk in (k[i], k[i] - 1 if b[i] < k[i] * h else k[i] + 1):
+            if 1 <= kk <= n - 1 and kk not in taken:
+                taken.add(int(kk))
+                edges[kk] = b[i]
+                break
+    edges = np.sort(edges)
+    if not np.all(np.diff(edges) > 1e-9 * h):
+        return None
+    return edges
+
+
 class PeriodicProblem:
     """A scene discretised on ``n`` time elements (see the module docstring).
 
@@ -149,6 +180,14 @@ class PeriodicProblem:
         DOFs of the exact stiff split of the exponential holds.
     periods : int
         Cycles of the drive the problem spans (2: a period-doubled response).
+    edges : ndarray, shape (n + 1,), optional
+        Non-uniform element edges [s] from 0 to the period (a scheme with ``graded``; one
+        period): elements that end where the data has a kink (:func:`snapped_edges`).
+    kinks : ndarray, optional
+        Those instants [s]: an element's stage at its end (Radau IIA) takes the data just
+        before it (the left limit, :data:`LEFT_LIMIT` of the element earlier), not whichever
+        side the round-off of the block's abscissa picks (a one-sided stage left the
+        oscillating cylinder at first order on snapped elements).
 
     Attributes
     ----------
@@ -166,13 +205,22 @@ class PeriodicProblem:
     """
 
     def __init__(self, scene, model, cycle, scheme, n: int, *, damping_field=None, stiff=None,
-                 periods: int = 1):
+                 periods: int = 1, edges=None, kinks=None):
         ta = time.perf_counter()
         self.scene, self.model, self.scheme, self.n = scene, model, scheme, int(n)
         self.periods = int(periods)
         self.period = scene.period * self.periods
-        self.instants = scheme.instants(self.n, self.period)
+        self.edges = edges if (edges is not None and scheme.graded and self.periods == 1) else None
+        self.instants = scheme.instants(self.n, self.period, self.edges)
         t = self.instants if self.periods == 1 else np.mod(self.instants, scene.period)
+        if self.edges is not None and kinks is not None and len(kinks):
+            h = np.diff(self.edges)
+            s = self.instants.size // self.n
+            ends = self.instants.reshape(self.n, s)[:, -1]
+            at_kink = np.isin(np.round(ends / self.period, 12), np.round(np.asarray(kinks) / self.period, 12))
+            t = t.copy().reshape(self.n, s)
+            t[at_kink, -1] -= LEFT_LIMIT * h[at_kink]
+            t = t.ravel()
         self.motion = cycle.at(t)
         tb = time.perf_counter()
         self.assembler = Assembler(model, self.motion, scene.effects, damping=scene.damping,
@@ -181,6 +229,8 @@ class PeriodicProblem:
         self.options = {"delta": scene.delta} if scene.delta is not None else {}
         if stiff is not None:
             self.options["stiff"] = stiff
+        if self.edges is not None:
+            self.options["edges"] = self.edges
         self._terms = None
         self._D = None
         self.kinematics = tb - ta
@@ -257,7 +307,7 @@ class PeriodicProblem:
         if self._D is None:
             self._D = _static_inverse(terms.K, terms.M, self.instants.size, self.N)
         Ct, Kt, Qt = schemes.with_state_terms(terms.C, terms.K, terms.Q, *self.assembler.state_terms(U, V))
-        r = collocation.residual(terms.M, Ct, Kt, Qt, U, V, self.period, self.scheme.name)
+        r = collocation.residual(terms.M, Ct, Kt, Qt, U, V, self.period, self.scheme.name, edges=self.edges)
         return float(np.linalg.norm(np.einsum("tij,tj->ti", self._D, r) if self._D.ndim == 3 else r @ self._D.T))
 
     def solve(self, x0=None, *, eps: float, max_iter: int, method: str = "newton") -> Solved:
