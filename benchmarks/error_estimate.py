@@ -166,7 +166,7 @@ def write(rows, out_dir):
               f"true error: {ok_default}. At every tolerance: ")
     md[-1] += (f"estimate >= 1/3 of the true error (above 1e-7): {ok_low}; <= 10x where the true error exceeds "
               f"1e-5: {ok_high}; every result within its tolerance: {ok_tol}. Cases marked * are not in the "
-              "catalogue (benchmarks/linkages.py). The forecast a solve makes after its first level is within "
+              "catalogue (benchmarks/linkages.py). The forecast a solve makes after its second level is within "
               f"2x of its wall time in {fc_ok} of {len(fc)} results (forecast / time {min(fc):.2f} .. "
               f"{max(fc):.2f}).")
     with open(os.path.join(out_dir, "error_estimate.md"), "w") as f:

@@ -10,7 +10,12 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["Scatter"]
+__all__ = ["Scatter", "ACTIVE_WIDTH"]
+
+#: element matrices at least this wide are scattered by the columns each instant uses (the
+#: elements and point masses at a block carry the columns of every node of the member it
+#: slides on, of which a handful are not zero at an instant)
+ACTIVE_WIDTH = 24
 
 
 class Scatter:
@@ -62,7 +67,8 @@ class Scatter:
     def _scatter_active(self, gname: str, data: np.ndarray, out: np.ndarray) -> None:
         """Scatter of wide element matrices by the columns each instant actually uses.
 
-        The maps of the elements at a block span every node of the member it slides on, but
+        The maps of the elements (and point masses) at a block span every node of the member
+        it slides on, but
         at an instant only the element under the block carries entries: a handful of the
         ``m`` columns (the Whitworth's: 12 of 57). Instants with the same active columns are
         scattered together through a plan for those columns alone; the entries left out are
@@ -102,7 +108,7 @@ class Scatter:
         N = self.n_dof
         if out is None:
             out = np.zeros((nt, N, N))
-        if gname.endswith("#wide") and data.shape[0] > 1 and out.flags.c_contiguous:
+        if data.shape[-1] >= ACTIVE_WIDTH and data.shape[0] > 1 and out.flags.c_contiguous:
             self._scatter_active(gname, data, out)
             return out
         self._segment_add(mat, np.ascontiguousarray(data).reshape(nt, -1), out.reshape(nt, N * N))
