@@ -267,7 +267,8 @@ class _Run:
         """The scene's modal damping over the cycle (built once; None for other damping, and where
         a block crosses the nodes of its link: ``C(t)`` has kinks there, which a trigonometric
         interpolant does not settle on before 1024 samples, so the eigenproblems per instant
-        are cheaper; the oscillating cylinder spent 0.4 s of its 1.1 s on the attempt)."""
+        are cheaper; the oscillating cylinder spent 0.4 s of its 1.1 s on the attempt; a
+        Chebyshev interpolant between the kinks, tried, cost the Whitworth as much as it saved)."""
         sc = self.scene
         if not isinstance(sc.damping, ModalDamping) or self.breaks().size:
             return None

@@ -142,7 +142,8 @@ def snapped_edges(n: int, period: float, breaks) -> np.ndarray | None:
     edge moves by more than half an element. None when there is nothing to snap, or fewer
     than two elements per break (the coarse levels of a solve stay uniform).
     """
-    b = np.asarray(breaks, dtype=float)
+    b = np.mod(np.asarray(breaks, dtype=float), period)
+    b = b[(b > 1e-9 * period) & (b < (1.0 - 1e-9) * period)]  # a kink at 0 is an element end already
     if b.size == 0 or n < 2 * b.size:
         return None
     h = period / n

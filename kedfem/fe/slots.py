@@ -132,7 +132,11 @@ def node_crossings(fe, cycle, period: float, samples: int = 2048) -> np.ndarray:
         g, r = gap(tc)
         step = np.where(r != 0.0, g / np.where(r != 0.0, r, 1.0), 0.0)
         tc = np.clip(tc - step, a, b)
-    return np.unique(np.mod(tc, period))
+    out = np.unique(np.mod(tc, period))
+    out = out[np.append(True, np.diff(out) > 1e-9 * period)]  # a crossing found from both sides
+    if out.size > 1 and out[0] + period - out[-1] <= 1e-9 * period:
+        out = out[:-1]  # at the end of the cycle and at its start: the same instant
+    return out
 
 
 def element_at(lk, x):
