@@ -248,6 +248,7 @@ class _Run:
         self._stab_need, self._stab_f = 0, 0.0
         self._stab_loss = None  # n -> the most the scheme lowers ln(rho) on n elements
         self._stab_decay = 0.0  # ln of the least damped mode's physical multiplier per cycle
+        self._buckled = True  # a mode of negative stiffness somewhere in the cycle (set by resolution)
         self._read: dict = {}  # (level index, output instants) -> (the level, what reading it computed)
         self._continue = None
         self._need = 0       # time elements that resolve the excited modes (set by _run)
@@ -564,7 +565,9 @@ class _Run:
         t = np.arange(BAND_INSTANTS) * (T / BAND_INSTANTS)
         asm = Assembler(self.model, self.cycle.at(t), sc.effects, damping=None, frame=True)
         S = asm.system()
-        f = np.sort(np.abs(eig_frequencies(S.M, S.K, name=sc.mech.name, labels=self.model.dof_labels)), axis=1)  # (instants, modes), Hz
+        f = eig_frequencies(S.M, S.K, name=sc.mech.name, labels=self.model.dof_labels)
+        self._buckled = bool(np.any(f <= 0.0))  # a negative stiffness: growth, not a decaying mode
+        f = np.sort(np.abs(f), axis=1)  # (instants, modes), Hz
         lo, hi = f.min(axis=0), f.max(axis=0)
         self._bands = (lo, hi)
         f_kin = self._motion_band(level=1e-3 * sc.rtol)
@@ -737,7 +740,7 @@ class _Run:
         within the motion's harmonics, cannot raise them to 1. The damping bound says nothing
         here: at 1 rpm the modes decay by ``e^-1500`` per cycle and the scheme's damping
         underflows the computed radius to 0 (the floor asked for 32768 elements)."""
-        return (self._need <= 1 and self._stab_decay < 0.0
+        return (self._need <= 1 and not self._buckled and self._stab_decay < 0.0
                 and self._stab_decay < math.log(CERTAIN_RHO) - STAB_MARGIN)
 
     def stability(self, error=None) -> Stability:
