@@ -719,19 +719,22 @@ class _Run:
         """The finest level's spectral radius, raised by the most its numerical damping can have
         lowered it, is still below :data:`CERTAIN_RHO`: more elements would sharpen a number
         whose verdict is not in doubt (a linkage at rho 0.01 refined to 768 elements for it)."""
-        rho, bound = self.levels[-1].discrete.spectral_radius, self.damping_bound()
+        rho = self.levels[-1].discrete.spectral_radius
         if not np.isfinite(rho):
             return False
-        if math.isfinite(bound) and rho * (1.0 + bound) < CERTAIN_RHO:
-            return True
-        return self.quasi_static_decay() and rho < CERTAIN_RHO
+        return self._raised_rho() < CERTAIN_RHO or (self.quasi_static_decay() and rho < CERTAIN_RHO)
+
+    def _raised_rho(self) -> float:
+        """The finest level's spectral radius raised by the most its numerical damping can have
+        lowered it (inf when that is not bounded)."""
+        rho, bound = self.levels[-1].discrete.spectral_radius, self.damping_bound()
+        return rho * (1.0 + bound) if (np.isfinite(rho) and math.isfinite(bound)) else math.inf
 
     def clearly_stable(self) -> bool:
         """The finest level's spectral radius, raised by the most the numerical damping can have
         lowered it, is below :data:`HISTORY_FREE_RHO`: a verdict so clear that the solve stops on
         its peaks alone below the stability floor."""
-        rho, bound = self.levels[-1].discrete.spectral_radius, self.damping_bound()
-        return bool(np.isfinite(rho) and math.isfinite(bound) and rho * (1.0 + bound) < HISTORY_FREE_RHO)
+        return self._raised_rho() < HISTORY_FREE_RHO
 
     def quasi_static_decay(self) -> bool:
         """No mode within the drive's excitation (:meth:`resolution` said quasi-static) and every
@@ -893,22 +896,15 @@ class _Run:
             believed = False
             while True:
                 lv = self.level(n, eps=eps_level)
-                if len(self.levels) == 2:  # a difference to extrapolate: the forecast again
-                    self.forecast_s = time.perf_counter() - self.t0 + self.forecast(need)
-                    log.info("%s: forecast after two levels %.3g s (up to %d time elements)", sc.mech.name,
-                             self.forecast_s, self.forecast_elements(need))
-                    if self._bar is not None and self._bar.total is not None:
-                        self._bar.total = 2 + self._more_levels
-                        self._bar.refresh()
-                if len(self.levels) == 1:
+                if len(self.levels) <= 2:  # after the second, a difference to extrapolate: again
                     left = self.forecast(need)
                     self.forecast_s = time.perf_counter() - self.t0 + left
-                    log.info("%s: forecast %.3g s (up to %d time elements)", sc.mech.name, self.forecast_s,
-                             self.forecast_elements(need))
+                    log.info("%s: forecast after %d level(s) %.3g s (up to %d time elements)", sc.mech.name,
+                             len(self.levels), self.forecast_s, self.forecast_elements(need))
                     if self._bar is not None:  # the levels expected (the bar runs on if more are needed)
-                        self._bar.total = 1 + self._more_levels
+                        self._bar.total = len(self.levels) + self._more_levels
                         self._bar.refresh()
-                    if left > LONG_SOLVE:
+                    if len(self.levels) == 1 and left > LONG_SOLVE:
                         log.warning("%s: this solve will take about %.0f s more (%d elastic DOFs, up to %d time "
                                     "elements per cycle: %.2f s per element measured on the first %d); a looser "
                                     "rtol or a coarser mesh is faster", sc.mech.name, left, self.model.n_dof,

@@ -217,8 +217,7 @@ class PeriodicProblem:
         if self.edges is not None and kinks is not None and len(kinks):
             h = np.diff(self.edges)
             s = self.instants.size // self.n
-            ends = self.instants.reshape(self.n, s)[:, -1]
-            at_kink = np.isin(np.round(ends / self.period, 12), np.round(np.asarray(kinks) / self.period, 12))
+            at_kink = np.isin(self.edges[1:], kinks)  # snapped edges are the kinks' own values
             t = t.copy().reshape(self.n, s)
             t[at_kink, -1] -= LEFT_LIMIT * h[at_kink]
             t = t.ravel()

@@ -18,6 +18,22 @@ __all__ = ["Scatter", "ACTIVE_WIDTH"]
 ACTIVE_WIDTH = 24
 
 
+def _plan(flat_targets, keep):
+    """(gather order, segment starts, targets) of the kept entries, equal targets adjacent."""
+    idx = np.flatnonzero(keep)
+    tgt = flat_targets[idx]
+    order = np.argsort(tgt, kind="stable")
+    idx, tgt = idx[order], tgt[order]
+    starts = np.flatnonzero(np.r_[True, tgt[1:] != tgt[:-1]]) if tgt.size else np.zeros(0, int)
+    return idx, starts, tgt[starts]
+
+
+def _matrix_plan(colarr, N: int):
+    """:func:`_plan` of element matrices with DOF map ``colarr`` (n_el, m) into ``(N, N)``."""
+    r, c = colarr[:, :, None], colarr[:, None, :]
+    return _plan((r * N + c).reshape(-1), ((r < N) & (c < N)).reshape(-1))
+
+
 class Scatter:
     """The scatter part of :class:`kedfem.fe.model.FEModel`."""
 
@@ -33,18 +49,8 @@ class Scatter:
             return self._scatter_cache[gname]
         colarr = self._static_layout(gname)[0]
         N = self.n_dof
-
-        def plan(flat_targets, keep):
-            idx = np.flatnonzero(keep)
-            tgt = flat_targets[idx]
-            order = np.argsort(tgt, kind="stable")
-            idx, tgt = idx[order], tgt[order]
-            starts = np.flatnonzero(np.r_[True, tgt[1:] != tgt[:-1]]) if tgt.size else np.zeros(0, int)
-            return idx, starts, tgt[starts]
-
-        r, c = colarr[:, :, None], colarr[:, None, :]
-        mat = plan((r * N + c).reshape(-1), ((r < N) & (c < N)).reshape(-1))
-        vec = plan(colarr.reshape(-1), colarr.reshape(-1) < N)
+        mat = _matrix_plan(colarr, N)
+        vec = _plan(colarr.reshape(-1), colarr.reshape(-1) < N)
         self._scatter_cache[gname] = (mat, vec)
         return mat, vec
 
@@ -52,24 +58,14 @@ class Scatter:
         """Segment sums of a group's element matrices restricted to element columns ``cols``."""
         key = (gname, cols.tobytes())
         if key not in self._scatter_cache:
-            colarr = self._static_layout(gname)[0][:, cols]
-            N = self.n_dof
-            r, c = colarr[:, :, None], colarr[:, None, :]
-            flat, keep = (r * N + c).reshape(-1), ((r < N) & (c < N)).reshape(-1)
-            idx = np.flatnonzero(keep)
-            tgt = flat[idx]
-            order = np.argsort(tgt, kind="stable")
-            idx, tgt = idx[order], tgt[order]
-            starts = np.flatnonzero(np.r_[True, tgt[1:] != tgt[:-1]]) if tgt.size else np.zeros(0, int)
-            self._scatter_cache[key] = (idx, starts, tgt[starts])
+            self._scatter_cache[key] = _matrix_plan(self._static_layout(gname)[0][:, cols], self.n_dof)
         return self._scatter_cache[key]
 
     def _scatter_active(self, gname: str, data: np.ndarray, out: np.ndarray) -> None:
         """Scatter of wide element matrices by the columns each instant actually uses.
 
         The maps of the elements (and point masses) at a block span every node of the member
-        it slides on, but
-        at an instant only the element under the block carries entries: a handful of the
+        it slides on, but at an instant only the element under the block carries entries: a handful of the
         ``m`` columns (the Whitworth's: 12 of 57). Instants with the same active columns are
         scattered together through a plan for those columns alone; the entries left out are
         zeros, so the sums are those of the full scatter.
