@@ -747,6 +747,11 @@ class PeriodicResult:
         q = U[:, list(cols)]
         return np.einsum("tij,tj->ti", np.broadcast_to(C, (self.n,) + C.shape[1:]), q)
 
+    @property
+    def peaks_read(self) -> bool:
+        """:meth:`peaks` has been read (and is kept)."""
+        return "peaks" in self._cache
+
     def peaks(self) -> list[LinkPeaks]:
         """Peak mid-span deflection and stress of every flexible link.
 
