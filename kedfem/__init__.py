@@ -5,6 +5,7 @@ from .errors import (AccuracyWarning, ConvergenceWarning, EffectWarning, InputEr
                      SingularMassError, UnboundedResponseError)
 from .model.materials import Material, Section
 from .model.mechanism import Mechanism
+from .model.profiles import Profile
 from .motion.kinematics import Cycle, Motion, kinematics, kinematics_at, static_motion
 from .motion.stroke import Stroke, stroke
 from .fe.model import FEModel

@@ -35,6 +35,7 @@ from ..errors import AccuracyWarning, EffectWarning, InputError
 from ..motion.kinematics import Cycle, kinematics
 from ..fe.modal_damping import DampingField
 from ..fe.slots import node_crossings
+from ..fe.effects.loads import load_breaks
 from ..solvers.threads import one_blas_thread
 from .plausibility import check_passive_links, check_result
 from .problem import PeriodicProblem, constant_or_sampled, snapped_edges
@@ -271,7 +272,8 @@ class _Run:
         are cheaper; the oscillating cylinder spent 0.4 s of its 1.1 s on the attempt; a
         Chebyshev interpolant between the kinks, tried, cost the Whitworth as much as it saved)."""
         sc = self.scene
-        if not isinstance(sc.damping, ModalDamping) or self.breaks().size:
+        self.breaks()
+        if not isinstance(sc.damping, ModalDamping) or self._node_breaks.size:
             return None
         if self._field is None:
             def exact(t):
@@ -356,13 +358,24 @@ class _Run:
                                    stiff=self.stiff, edges=edges, kinks=self.breaks() if edges is not None else None)
 
     def breaks(self) -> np.ndarray:
-        """Instants [s] where the data has a kink in time: a block crossing a node of its
-        flexible link (:func:`kedfem.fe.slots.node_crossings`); element edges go there."""
+        """Instants [s] where the data has a kink or a step in time: a block crossing a node of
+        its flexible link (:func:`kedfem.fe.slots.node_crossings`), a process load's profile
+        reaching a kink or step of its table (:func:`kedfem.fe.effects.loads.load_breaks`);
+        element edges go there."""
         if self._breaks is None:
-            self._breaks = node_crossings(self.model, self.cycle, self.scene.period)
-            if self._breaks.size:
+            sc = self.scene
+            nodes = node_crossings(self.model, self.cycle, sc.period)
+            loads = (load_breaks(sc.mech, self.cycle, sc.period) if "loads" in sc.effects
+                     else np.zeros(0))
+            self._node_breaks = nodes
+            t = np.sort(np.concatenate([nodes, loads]))
+            self._breaks = t[np.concatenate([[True], np.diff(t) > 1e-12 * sc.period])] if t.size else t
+            if nodes.size:
                 log.info("%s: %d instants where a block crosses a node of its link: element edges there",
-                         self.scene.mech.name, self._breaks.size)
+                         sc.mech.name, nodes.size)
+            if loads.size:
+                log.info("%s: %d instants where a process load kinks or steps: element edges there",
+                         sc.mech.name, loads.size)
         return self._breaks
 
     def homotopy(self, prob, failed, eps: float):

@@ -140,14 +140,20 @@ def snapped_edges(n: int, period: float, breaks) -> np.ndarray | None:
 
     The number of elements stays ``n`` (the levels of a solve keep their ratio of two); no
     edge moves by more than half an element. None when there is nothing to snap, or fewer
-    than two elements per break (the coarse levels of a solve stay uniform).
+    than two elements per break (the coarse levels of a solve stay uniform); the uniform edges
+    when the only break is at the cycle's start (the last element's end stage then reads the
+    left limit, :class:`PeriodicProblem`).
     """
     b = np.mod(np.asarray(breaks, dtype=float), period)
-    b = b[(b > 1e-9 * period) & (b < (1.0 - 1e-9) * period)]  # a kink at 0 is an element end already
-    if b.size == 0 or n < 2 * b.size:
-        return None
+    inner = (b > 1e-9 * period) & (b < (1.0 - 1e-9) * period)
+    at_start = bool(np.any(~inner))  # a kink at 0 is an element end already (its stage reads it)
+    b = b[inner]
     h = period / n
     edges = np.arange(n + 1) * h
+    if b.size == 0:
+        return edges if at_start else None
+    if n < 2 * b.size:
+        return None
     k = np.clip(np.rint(b / h).astype(int), 1, n - 1)
     taken: set[int] = set()
     for i in np.argsort(np.abs(b - k * h)):  # the nearest breaks first
@@ -218,6 +224,10 @@ class PeriodicProblem:
             h = np.diff(self.edges)
             s = self.instants.size // self.n
             at_kink = np.isin(self.edges[1:], kinks)  # snapped edges are the kinks' own values
+            # a kink or step at the cycle's start is the last element's end (a press drawn at its
+            # dead centre, where its stroke's load steps)
+            at_kink[-1] |= bool(np.any(np.minimum(np.mod(kinks, self.period), self.period - np.mod(kinks, self.period))
+                                       <= 1e-9 * self.period))
             t = t.copy().reshape(self.n, s)
             t[at_kink, -1] -= LEFT_LIMIT * h[at_kink]
             t = t.ravel()

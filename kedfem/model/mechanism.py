@@ -24,6 +24,7 @@ import numpy as np
 from ..errors import InputError
 from .materials import MAX_LENGTH, Material, Section, flag, names, real
 from . import placement
+from .profiles import Profile
 from ..errors import LengthWarning
 
 __all__ = [
@@ -239,11 +240,13 @@ class Drive:
 
 @dataclass(frozen=True)
 class Load:
-    """Constant external force [N] at a joint, in global components."""
+    """External force [N] at a joint, in global components: constant, or times the factor of a
+    :class:`~kedfem.model.profiles.Profile` over the cycle (a process load)."""
 
     name: str
     joint: str
     force: tuple[float, float]
+    profile: Profile | None = None
 
 
 @dataclass(frozen=True)
@@ -848,15 +851,43 @@ class Mechanism:
         self.drives.append(d)
         return d
 
-    def load(self, name: str, joint: str, force) -> Load:
-        """Add a constant external force [N] (global components) at a joint."""
+    def load(self, name: str, joint: str, force, profile: Profile | None = None) -> Load:
+        """Add an external force [N] (global components) at a joint.
+
+        Parameters
+        ----------
+        name : str
+        joint : str
+            Joint the force acts on.
+        force : (float, float)
+            Force [N]; constant without ``profile``.
+        profile : Profile, optional
+            A process load: the force times the profile's factor over the cycle, from a table
+            of the crank angle, or of a joint's position (on one stroke or both) or velocity
+            along an axis (:class:`~kedfem.model.profiles.Profile`; docs/loads.md).
+
+        Examples
+        --------
+        A press's forming force, 40 kN against the ram over the last 10 mm of its down-stroke
+        (the ram ``B`` moves along -y, reaching y = -0.35 m at the bottom dead centre):
+
+        >>> m.load("forming", "B", force=(0.0, 40e3),  # doctest: +SKIP
+        ...        profile=kf.Profile.position("B", (0, -1), [0.34, 0.34, 0.35], [0, 1, 1],
+        ...                                    stroke="forward"))
+        """
         owner = f"load '{name}'"
         if not isinstance(name, str) or not name:
             raise InputError(f"{self.name}: load name must be a non-empty string, got {name!r}")
         if name in self.loads or name in self.frictions:
             raise InputError(f"{self.name}: load name '{name}' is used twice")
         self._check_joint(owner, joint)
-        ld = Load(name, joint, _vec2(owner, "force", force, limit=None, unit=" N"))
+        if profile is not None:
+            if not isinstance(profile, Profile):
+                raise InputError(f"{owner}: profile must be a kf.Profile (Profile.crank_angle, .position or "
+                                 f".velocity), got {type(profile).__name__}")
+            if profile.joint is not None:
+                self._check_joint(f"{owner}: its profile", profile.joint)
+        ld = Load(name, joint, _vec2(owner, "force", force, limit=None, unit=" N"), profile)
         self.loads[name] = ld
         return ld
 

@@ -1,6 +1,7 @@
-"""``loads``: declared constant loads and friction forces.
+"""``loads``: declared loads and friction forces.
 
-A :class:`kedfem.model.mechanism.Load` is a constant force on a joint. A
+A :class:`kedfem.model.mechanism.Load` is a force on a joint, constant or times the factor of
+its profile over the cycle (a process load, :mod:`kedfem.motion.profiles`). A
 friction force (tanh-regularised Coulomb law along an axis) follows either the
 rigid-body velocity of its joint (``follows="rigid"``: a load) or the total
 velocity (``follows="total"``: iterated, with the tangent damping ``c_t n n^T``).
@@ -15,9 +16,29 @@ import numpy as np
 
 from ...model.mechanism import Load
 from ...motion.kinematics import Motion, slot_direction
+from ...motion.profiles import breaks, factor
 from .base import Chunk, Effect, StateTerms
 
-__all__ = ["Loads", "rigid_friction", "friction_law", "pair_friction"]
+__all__ = ["Loads", "rigid_friction", "friction_law", "pair_friction", "load_force", "load_breaks"]
+
+
+def load_breaks(mech, cycle, period: float) -> np.ndarray:
+    """Instants [s] in ``[0, period)`` where a process load's force kinks or steps (sorted, each
+    once): :func:`kedfem.motion.profiles.breaks` of every declared load's profile."""
+    found = [breaks(ld.profile, cycle, period) for ld in mech.loads.values() if ld.profile is not None]
+    if not found:
+        return np.zeros(0)
+    t = np.sort(np.concatenate(found))
+    return t[np.concatenate([[True], np.diff(t) > 1e-12 * period])] if t.size else t
+
+
+def load_force(mo: Motion, ld: Load) -> np.ndarray:
+    """A declared load's force [N] (nt, 2) at the motion's instants (its profile's factor times
+    its force vector; the force itself without a profile)."""
+    F = np.asarray(ld.force, dtype=float)
+    if ld.profile is None:
+        return np.broadcast_to(F, (mo.n, 2))
+    return factor(ld.profile, mo)[:, None] * F
 
 
 def friction_law(mo: Motion, f, dv=None) -> np.ndarray:
@@ -60,7 +81,7 @@ class Loads(Effect):
 
     def joint_loads(self, asm, motion: Motion, loads: np.ndarray, moments: np.ndarray) -> None:
         for ld in asm.mech.loads.values():
-            loads[:, motion.joint_names.index(ld.joint)] += np.asarray(ld.force)
+            loads[:, motion.joint_names.index(ld.joint)] += load_force(motion, ld)
         for f in asm.mech.frictions.values():
             if f.axis is not None:  # a sliding pair's friction is a force inside the pair
                 loads[:, motion.joint_names.index(f.joint)] += rigid_friction(motion, f)
@@ -75,7 +96,7 @@ class Loads(Effect):
         Q = np.zeros((chunk.motion.n, g.n, 2))
         for k, it in enumerate(g.meta["items"]):
             if isinstance(it, Load):
-                Q[:, k] = it.force
+                Q[:, k] = load_force(chunk.motion, it)
             elif isinstance(it, tuple):  # ("reaction", f): the member's side of a sliding pair's friction
                 Q[:, k] = -rigid_friction(chunk.motion, it[1], mech=asm.mech)
             elif it.follows == "rigid":

@@ -1,0 +1,167 @@
+"""Process loads (kf.Profile): the table, the instants of its kinks, and machines that work
+against them, checked against hand analyses.
+
+The press (examples/press.py) and the shaper (the Whitworth quick-return with a cutting force
+on its forward stroke): drive torque and bearing forces of the rigid kinetostatics against a
+Newton-Euler analysis written here in numpy, on closed-form positions differentiated by a
+five-point stencil (no kedfem kinematics), to 1e-6 of the largest force.
+"""
+
+import math
+import os
+import sys
+
+import numpy as np
+import pytest
+
+import kedfem as kf
+import mechanisms
+from kedfem.fe.effects.loads import load_breaks
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "examples"))
+import press  # noqa: E402
+
+G = np.array([0.0, -9.80665])
+RIGID = ("inertia", "coupling", "gravity", "loads")
+
+
+def cross(a, b):
+    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
+def derivatives(f, t, h):
+    """Value, first and second time derivative of ``f(t)`` (arrays) by five-point stencils."""
+    f2, f1, f0, g1, g2 = (f(t + k * h) for k in (2, 1, 0, -1, -2))
+    d1 = (-f2 + 8 * f1 - 8 * g1 + g2) / (12 * h)
+    d2 = (-f2 + 16 * f1 - 30 * f0 + 16 * g1 - g2) / (12 * h * h)
+    return f0, d1, d2
+
+
+def stroke_weight(v, stroke):
+    """The share of a one-stroke load: 1 on its stroke, 0 on the other, 1/2 at a dead centre."""
+    return 0.5 * (1 + np.sign(v)) if stroke == "forward" else 0.5 * (1 - np.sign(v))
+
+
+# --------------------------------------------------------------------------- the table
+def test_profile_table_steps_kinks_and_periodic_angles():
+    p = kf.Profile.position("B", (0, -2), [1.0, 2.0, 2.0, 3.0], [0.0, 1.0, 3.0, 3.0])
+    assert p.axis == (0.0, -1.0)
+    q = np.array([0.0, 1.5, 1.999, 2.0, 2.5, 9.0])
+    assert np.allclose(p.table(q), [0.0, 0.5, 0.999, 3.0, 3.0, 3.0])
+    assert np.allclose(p.levels, [1.0, 2.0])  # the kink at 1, the step at 2 (flat on from it)
+    a = kf.Profile.crank_angle([90, 270], [1.0, 3.0])  # periodic: back down from 270 to 90 + 360
+    assert np.allclose(a.table(np.array([90, 180, 270, 360, 450, -90])), [1, 2, 3, 2, 1, 3])
+    assert np.allclose(a.levels, [90, 270])
+
+
+@pytest.mark.parametrize("bad, says", [
+    (lambda: kf.Profile.position("B", (0, 0), [0, 1], [0, 1]), "axis"),
+    (lambda: kf.Profile.position("B", (1, 0), [1, 0], [0, 1]), "must not decrease"),
+    (lambda: kf.Profile.position("B", (1, 0), [0, 0, 0], [0, 1, 2]), "three times"),
+    (lambda: kf.Profile.position("B", (1, 0), [0, 1], [0, 1, 2]), "as many factors"),
+    (lambda: kf.Profile.crank_angle([0, 400], [0, 1]), "0 .. 360"),
+    (lambda: kf.Profile.velocity("B", (1, 0), [0, 1], [0, 1]).__class__("velocity", (0, 1), (0, 1), "B",
+                                                                       (1, 0), "forward"), "stroke="),
+    (lambda: kf.Profile.position("B", (1, 0), [0, float("nan")], [0, 1]), "not finite"),
+])
+def test_profile_errors_name_the_problem(bad, says):
+    with pytest.raises(kf.InputError, match=says):
+        bad()
+
+
+def test_a_profile_on_an_unknown_joint_is_refused_by_the_load():
+    m = press.build()
+    with pytest.raises(kf.InputError, match="unknown joint 'Q'"):
+        m.load("x", "B", (0, 1), profile=kf.Profile.position("Q", (1, 0), [0, 1], [0, 1]))
+    with pytest.raises(kf.InputError, match="kf.Profile"):
+        m.load("y", "B", (0, 1), profile=[0, 1])
+
+
+def test_breaks_are_where_the_motion_reaches_the_table_kinks():
+    """The press: contact on the down-stroke, the bottom dead centre, the end of the springback on
+    the way up, each at the instant the closed-form slider-crank gives."""
+    m = press.build()
+    r, l, w = 0.05, 0.25, 2 * math.pi
+    bdc = r + l
+    t = load_breaks(m, kf.Cycle(m), m.period)
+
+    def depth(tt):  # the ram's depth below O, crank drawn up
+        th = math.pi / 2 + w * tt
+        return -(r * np.sin(th) - np.sqrt(l**2 - (r * np.cos(th)) ** 2))
+
+    assert t.size == 3
+    assert np.allclose(depth(t), [bdc - 0.01, bdc, bdc - 0.002], atol=1e-12)
+    assert np.isclose(t[1], m.period / 2, atol=1e-12)
+
+
+# --------------------------------------------------------------------------- the press
+def press_by_hand(t, r=0.05, l=0.25, w=2 * math.pi, m_c=3.0, m_B=20.0, rhoA=7850.0 * 0.03 * 0.03,
+                  F=40e3, travel=0.01, springback=0.002):
+    """Drive torque and pin forces of the rigid press, Newton-Euler, per instant."""
+    m_r = rhoA * l
+    J_c, J_r = m_c * r**2 / 12, m_r * l**2 / 12
+
+    def A(tt):
+        th = math.pi / 2 + w * tt
+        return np.stack([r * np.cos(th), r * np.sin(th)], -1)
+
+    def B(tt):
+        th = math.pi / 2 + w * tt
+        return np.stack([np.zeros_like(tt), r * np.sin(th) - np.sqrt(l**2 - (r * np.cos(th)) ** 2)], -1)
+
+    h = 1e-3
+    (a_, va, aa), (b_, vb, ab) = derivatives(A, t, h), derivatives(B, t, h)
+    d, dd = b_ - a_, ab - aa
+    alpha_r = cross(d, dd) / l**2
+    depth, vdepth = -b_[:, 1], -vb[:, 1]
+    bdc = r + l
+    share = (np.clip((depth - (bdc - travel)) / travel, 0, 1) * stroke_weight(vdepth, "forward")
+             + np.clip((depth - (bdc - springback)) / springback, 0, 1) * stroke_weight(vdepth, "return"))
+    load = share[:, None] * np.array([0.0, F])
+    out = []
+    for k in range(t.size):
+        # unknowns: P_Oc (2), P_Ac (2), P_Br (2), N, T  (forces on the bodies; pin A massless)
+        E, rhs = np.zeros((8, 8)), np.zeros(8)
+        # pin B with the ram: m_B a_B = -P_Br + (N, 0) + load + m_B g
+        E[0:2, 4:6] = -np.eye(2)
+        E[0, 6] = 1.0
+        rhs[0:2] = m_B * ab[k] - load[k] - m_B * G
+        # rod: m_r a_G = -P_Ac + P_Br + m_r g;  J_r alpha = (A - G) x (-P_Ac) + (B - G) x P_Br
+        gr = 0.5 * (a_[k] + b_[k])
+        E[2:4, 2:4] = -np.eye(2)
+        E[2:4, 4:6] = np.eye(2)
+        rhs[2:4] = m_r * 0.5 * (aa[k] + ab[k]) - m_r * G
+        ra, rb = a_[k] - gr, b_[k] - gr
+        E[4, 2:4] = [ra[1], -ra[0]]        # (ra x -P) = -(ra_x P_y - ra_y P_x)
+        E[4, 4:6] = [-rb[1], rb[0]]
+        rhs[4] = J_r * alpha_r[k]
+        # crank: m_c a_G = P_Oc + P_Ac + m_c g;  about O: T + A x P_Ac + (A/2) x m_c g = 0
+        E[5:7, 0:2] = np.eye(2)
+        E[5:7, 2:4] = np.eye(2)
+        rhs[5:7] = m_c * 0.5 * aa[k] - m_c * G
+        E[7, 2:4] = [-a_[k][1], a_[k][0]]
+        E[7, 7] = 1.0
+        rhs[7] = -cross(0.5 * a_[k], m_c * G)
+        out.append(np.linalg.solve(E, rhs))
+    x = np.array(out)
+    return dict(T=x[:, 7], P_Oc=x[:, 0:2], P_Ac=x[:, 2:4], P_Br=x[:, 4:6], N=x[:, 6])
+
+
+def test_press_rigid_kinetostatics_against_a_hand_analysis():
+    m = press.build()
+    res = kf.solve(kf.Scene(m, effects=RIGID, damping=kf.ModalDamping(0.02), steps=48, estimate=False))
+    loads = res.loads()
+    hand = press_by_hand(res.t)
+    scale = float(np.abs(hand["P_Ac"]).max())
+    assert scale > 3e4  # the forming force is there
+    checks = [(loads.torque(response="rigid"), hand["T"], "drive torque [N m] / 0.05 m"),
+              (loads.force("O", "crank", "rigid"), hand["P_Oc"], "O on crank"),
+              (loads.force("O", None, "rigid"), -hand["P_Oc"], "O on frame"),
+              (loads.force("A", "crank", "rigid"), hand["P_Ac"], "A on crank"),
+              (loads.force("A", "rod", "rigid"), -hand["P_Ac"], "A on rod"),
+              (loads.force("B", "rod", "rigid"), hand["P_Br"], "B on rod"),
+              (loads.force("B", None, "rigid")[:, 0], -hand["N"], "B on frame (guide)")]
+    for got, want, what in checks:
+        s = scale * (0.05 if "torque" in what else 1.0)
+        err = float(np.max(np.abs(np.asarray(got) - want))) / s
+        assert err < 1e-6, (what, err)
