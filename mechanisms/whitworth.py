@@ -5,9 +5,10 @@ carries a block that slides in the slotted lever ``O4 C``, pivoted at ``O4``
 a distance ``offset`` below ``O2``. Because ``offset < crank`` the lever
 turns fully round, slowly while the crank pin is above ``O4`` and fast
 below it. The link ``C D`` drives the ram ``D`` along the horizontal line
-through ``O4``. The cutting (forward, +x) stroke takes the crank angle
-``pi + 2 asin(offset / crank)``, the return stroke ``pi - 2 asin(offset /
-crank)``.
+through ``O4``. The slow (cutting) stroke takes the crank angle
+``pi + 2 asin(offset / crank)``, the quick return ``pi - 2 asin(offset /
+crank)``; with a counter-clockwise crank (``speed > 0``) the cutting stroke
+runs along -x (``examples/shaper.py``).
 
 The lever and the link are flexible steel bars; the crank is a stiff
 flexible bar (a block on a slot needs the pin's member to carry elastic

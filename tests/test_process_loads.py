@@ -165,3 +165,109 @@ def test_press_rigid_kinetostatics_against_a_hand_analysis():
         s = scale * (0.05 if "torque" in what else 1.0)
         err = float(np.max(np.abs(np.asarray(got) - want))) / s
         assert err < 1e-6, (what, err)
+
+
+# --------------------------------------------------------------------------- the shaper
+import shaper  # noqa: E402
+
+
+def shaper_by_hand(t, F=2000.0, cut_from=0.1, cut_to=0.9, entry=0.005):
+    """Drive torque and pin forces of the rigid Whitworth shaper, Newton-Euler, per instant."""
+    p = mechanisms.get("whitworth").DEFAULTS
+    r, e, L4, l, w, rho = p["crank"], p["offset"], p["lever"], p["link"], p["speed"], p["rho"]
+    m_c = rho * p["crank_height"] ** 2 * r
+    m_l = rho * p["lever_width"] * p["lever_height"] * L4
+    m_k = rho * p["link_width"] * p["link_height"] * l
+    m_b, m_D = p["block_mass"], p["ram_mass"]
+    J_c, J_l, J_k = m_c * r**2 / 12, m_l * L4**2 / 12, m_k * l**2 / 12
+    O2 = np.array([0.0, e])
+
+    def A(tt):
+        th = p["crank_angle"] + w * tt
+        return np.stack([r * np.cos(th), e + r * np.sin(th)], -1)
+
+    def C(tt):
+        a = A(tt)
+        return L4 * a / np.linalg.norm(a, axis=-1, keepdims=True)
+
+    def D(tt):
+        c = C(tt)
+        return np.stack([c[..., 0] + np.sqrt(l**2 - c[..., 1] ** 2), np.zeros_like(tt)], -1)
+
+    h = 1e-4
+    (a_, _va, aa), (c_, _vc, ac), (d_, vd, ad) = (derivatives(f, t, h) for f in (A, C, D))
+    u = c_ / L4
+    n = np.stack([-u[:, 1], u[:, 0]], -1)
+    alpha_l = cross(c_, ac) / L4**2          # |C| = L4: C x C'' / L4^2
+    dk = d_ - c_
+    alpha_k = cross(dk, ad - ac) / l**2
+    # the cutting stroke runs along -x (the slow one, counter-clockwise crank), from x = l + L4
+    xa, xb = (l + L4) - cut_from * 2 * L4, (l + L4) - cut_to * 2 * L4
+    share = np.interp(-d_[:, 0], [-xa, -xa + entry, -xb - entry, -xb], [0.0, 1.0, 1.0, 0.0]) \
+        * stroke_weight(-vd[:, 0], "forward")
+    load = share[:, None] * np.array([F, 0.0])
+    out = []
+    for k in range(t.size):
+        # unknowns (forces on the bodies): P_O2c 0:2, T 2, P_Ac 3:5, N 5, P_O4l 6:8, P_Cl 8:10, P_Dk 10:12, R 12
+        E, rhs = np.zeros((13, 13)), np.zeros(13)
+        gc, gl, gk = 0.5 * (O2 + a_[k]), 0.5 * c_[k], 0.5 * (c_[k] + d_[k])
+        # crank: m_c a_G = P_O2c + P_Ac + m_c g;  about O2: T + (A - O2) x P_Ac + (G - O2) x m_c g = 0
+        E[0:2, 0:2] = np.eye(2)
+        E[0:2, 3:5] = np.eye(2)
+        rhs[0:2] = m_c * 0.5 * aa[k] - m_c * G
+        ra = a_[k] - O2
+        E[2, 2] = 1.0
+        E[2, 3:5] = [-ra[1], ra[0]]
+        rhs[2] = -cross(gc - O2, m_c * G)
+        # pin A with the block: m_b a_A = -P_Ac + N n + m_b g
+        E[3:5, 3:5] = -np.eye(2)
+        E[3:5, 5] = n[k]
+        rhs[3:5] = m_b * aa[k] - m_b * G
+        # lever: m_l a_G = P_O4l - N n + P_Cl + m_l g;  J alpha = sum of (x - G) x F
+        E[5:7, 6:8] = np.eye(2)
+        E[5:7, 5] = -n[k]
+        E[5:7, 8:10] = np.eye(2)
+        rhs[5:7] = m_l * 0.5 * ac[k] - m_l * G
+        r0, r1, r2 = -gl, a_[k] - gl, c_[k] - gl
+        E[7, 6:8] = [-r0[1], r0[0]]
+        E[7, 5] = -cross(r1, n[k])
+        E[7, 8:10] = [-r2[1], r2[0]]
+        rhs[7] = J_l * alpha_l[k]
+        # link: m_k a_G = -P_Cl + P_Dk + m_k g
+        E[8:10, 8:10] = -np.eye(2)
+        E[8:10, 10:12] = np.eye(2)
+        rhs[8:10] = m_k * 0.5 * (ac[k] + ad[k]) - m_k * G
+        s1, s2 = c_[k] - gk, d_[k] - gk
+        E[10, 8:10] = [s1[1], -s1[0]]
+        E[10, 10:12] = [-s2[1], s2[0]]
+        rhs[10] = J_k * alpha_k[k]
+        # pin D with the ram: m_D a_D = -P_Dk + (0, R) + load + m_D g
+        E[11:13, 10:12] = -np.eye(2)
+        E[12, 12] = 1.0
+        rhs[11:13] = m_D * ad[k] - load[k] - m_D * G
+        out.append(np.linalg.solve(E, rhs))
+    x = np.array(out)
+    return dict(T=x[:, 2], P_O2c=x[:, 0:2], P_Ac=x[:, 3:5], lever_at_A=-x[:, 5:6] * n, P_O4l=x[:, 6:8],
+                P_Cl=x[:, 8:10], P_Dk=x[:, 10:12], R=x[:, 12], share=share)
+
+
+def test_shaper_rigid_kinetostatics_against_a_hand_analysis():
+    m = shaper.build()
+    res = kf.solve(kf.Scene(m, effects=RIGID, damping=kf.ModalDamping(0.02), steps=48, estimate=False))
+    loads = res.loads()
+    hand = shaper_by_hand(res.t)
+    assert 0.3 < float(np.mean(hand["share"] > 0.99)) < 0.6  # cutting over most of the slow stroke
+    scale = float(max(np.abs(hand[k]).max() for k in ("P_Ac", "P_O4l", "P_Cl", "P_Dk")))
+    checks = [(loads.torque(response="rigid"), hand["T"], "drive torque [N m] / 0.1 m"),
+              (loads.force("O2", "crank", "rigid"), hand["P_O2c"], "O2 on crank"),
+              (loads.force("A", "crank", "rigid"), hand["P_Ac"], "A on crank"),
+              (loads.force("A", "lever", "rigid"), hand["lever_at_A"], "A on lever"),
+              (loads.force("O4", "lever", "rigid"), hand["P_O4l"], "O4 on lever"),
+              (loads.force("C", "lever", "rigid"), hand["P_Cl"], "C on lever"),
+              (loads.force("C", "link", "rigid"), -hand["P_Cl"], "C on link"),
+              (loads.force("D", "link", "rigid"), hand["P_Dk"], "D on link"),
+              (loads.force("D", None, "rigid")[:, 1], -hand["R"], "D on frame (guide)")]
+    for got, want, what in checks:
+        s = scale * (0.1 if "torque" in what else 1.0)
+        err = float(np.max(np.abs(np.asarray(got) - want))) / s
+        assert err < 1e-6, (what, err)
