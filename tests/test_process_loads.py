@@ -271,3 +271,34 @@ def test_shaper_rigid_kinetostatics_against_a_hand_analysis():
         s = scale * (0.1 if "torque" in what else 1.0)
         err = float(np.max(np.abs(np.asarray(got) - want))) / s
         assert err < 1e-6, (what, err)
+
+
+# --------------------------------------------------------------------------- scene files
+SCENES = os.path.join(os.path.dirname(__file__), "..", "examples", "scenes")
+
+
+def test_the_shaper_scene_file_is_the_shaper_example():
+    scene, _out = kf.load_scene(os.path.join(SCENES, "shaper.toml"))
+    ld = scene.mech.loads["cutting"]
+    want = shaper.build().loads["cutting"]
+    assert ld.joint == want.joint and np.allclose(ld.force, want.force)
+    assert ld.profile.stroke == want.profile.stroke and np.allclose(ld.profile.axis, want.profile.axis)
+    assert np.allclose(ld.profile.x, want.profile.x, atol=1e-12) and np.allclose(ld.profile.y, want.profile.y)
+
+
+@pytest.mark.parametrize("entry, says", [
+    ({"name": "c", "joint": "D"}, r"loads\[0\]\.force.*missing"),
+    ({"name": "c", "joint": "Q", "force": [1.0, 0.0]}, "unknown joint 'Q'"),
+    ({"name": "c", "joint": "D", "force": [1.0]}, r"loads\[0\]\.force.*2 numbers"),
+    ({"name": "c", "joint": "D", "force": [1.0, 0.0], "profile": {"of": "position", "x": [0, 1], "y": [0, 1]}},
+     "needs the joint"),
+    ({"name": "c", "joint": "D", "force": [1.0, 0.0], "profile": {"of": "angle", "x": [0, 1], "y": [0, 1]}},
+     "crank_angle"),
+    ({"name": "c", "joint": "D", "force": [1.0, 0.0], "profile": {"of": "crank_angle", "x": [0, 90],
+                                                                   "y": [0, 1], "spline": True}},
+     r"loads\[0\]\.profile\.spline.*unknown key"),
+])
+def test_scene_file_loads_errors_name_the_key(entry, says):
+    data = {"mechanism": {"name": "whitworth"}, "effects": ["inertia", "loads"], "loads": [entry]}
+    with pytest.raises(kf.InputError, match=says):
+        kf.scene_from_dict(data)

@@ -28,6 +28,18 @@ names or in brackets)::
     name = "slider_crank"               # mechanisms.available()
     elements = 8                        # any parameter of the mechanism (SI units)
 
+    [[loads]]                           # a process load on the built mechanism (docs/loads.md)
+    name = "cutting"
+    joint = "D"
+    force = [2000.0, 0.0]               # [N], times the profile's factor
+    [loads.profile]                     # optional: constant force without it
+    of = "position"                     # "crank_angle" [deg] | "position" [m] | "velocity" [m/s]
+    joint = "D"                         # position / velocity: the joint read ...
+    axis = [-1.0, 0.0]                  # ... along this direction
+    x = [-0.69, -0.685, -0.215, -0.21]  # abscissae, non-decreasing (one given twice: a step)
+    y = [0.0, 1.0, 1.0, 0.0]            # factors
+    stroke = "forward"                  # "both" | "forward" (moving along +axis) | "return"
+
     [damping]
     model = "rayleigh"                  # "rayleigh" | "modal" | "none"
     alpha = 0.0                         # [1/s]
@@ -230,7 +242,7 @@ def _split_dotted(s: str) -> tuple[str, ...]:
 def _keyfmt(key: str) -> str:
     """A dotted key for messages: parts that are not bare TOML keys are quoted and escaped."""
     import json
-    return ".".join(p if p and re.fullmatch(r"[A-Za-z0-9_\-]+", p) else json.dumps(p)
+    return ".".join(p if p and re.fullmatch(r"[A-Za-z0-9_\-]+(\[\d+\])?", p) else json.dumps(p)
                     for p in key.split("."))
 
 
@@ -240,11 +252,20 @@ class _Locator:
     def __init__(self, text: str):
         self.lines: dict[str, int] = {}
         table: tuple[str, ...] = ()
+        arrays: dict[str, int] = {}  # [[name]]: entries so far; its k-th entry is "name[k]"
         for i, raw in enumerate(text.splitlines(), start=1):
             m = _HEADER.match(raw)
             if m:
                 table = _split_dotted(m.group("name"))
                 self.lines.setdefault(".".join(table), i)
+                if raw.lstrip().startswith("[["):
+                    name = ".".join(table)
+                    arrays[name] = arrays.get(name, -1) + 1
+                for name, k in arrays.items():  # a table in the last entry of an array of tables
+                    parts = tuple(name.split("."))
+                    if table[:len(parts)] == parts:
+                        table = parts[:-1] + (f"{parts[-1]}[{k}]",) + table[len(parts):]
+                        self.lines.setdefault(".".join(table), i)
                 continue
             m = _KEY.match(raw)
             if m:
@@ -359,7 +380,9 @@ def check_steps(v, key: str = "steps", source: str | None = None) -> int:
 
 # ------------------------------------------------------------------ sections
 _TOP_KEYS = ("name", "accuracy", "rtol", "method", "steps", "speed_rpm", "hold", "effects", "mechanism",
-             "damping", "solver", "output", "sweep")
+             "loads", "damping", "solver", "output", "sweep")
+_LOAD_KEYS = ("name", "joint", "force", "profile")
+_PROFILE_KEYS = ("of", "joint", "axis", "x", "y", "stroke")
 _DAMPING_KEYS = ("model", "alpha", "beta", "zeta")
 _SOLVER_KEYS = SOLVER_KEYS
 _OUTPUT_KEYS = ("dir", "plots", "csv", "npz", "vtk", "render", "modes", "scale", "every", "dofs")
@@ -452,6 +475,50 @@ def _mech_value(ctx, key, name, v, default, signed: bool):
             raise ctx.error(key, f"must be a number or a string, got {_typename(v)} {v!r}")
         return _float(ctx, key, v) if isinstance(v, (int, float)) else v
     raise ctx.error(key, f"cannot be set from a scene file (default {default!r})")
+
+
+def _floats(ctx, key, v, size=None, unit=""):
+    if not isinstance(v, list) or not v or (size is not None and len(v) != size):
+        n = f"{size} numbers" if size is not None else "numbers"
+        raise ctx.error(key, f"must be an array of {n}{unit}, got {_typename(v)} {v!r:.80}")
+    return [_float(ctx, f"{key}[{i}]", x, unit=unit) for i, x in enumerate(v)]
+
+
+def _loads(ctx, v, mech) -> None:
+    """``[[loads]]``: process loads added to the built mechanism (``Mechanism.load``)."""
+    from ..model.profiles import Profile
+    if not isinstance(v, list) or not all(isinstance(x, dict) for x in v):
+        raise ctx.error("loads", "must be an array of tables ([[loads]] with name, joint, force and profile)")
+    for i, ld in enumerate(v):
+        pre = f"loads[{i}]."
+        _unknown(ctx, ld, _LOAD_KEYS, pre)
+        for k in ("name", "joint", "force"):
+            if k not in ld:
+                raise ctx.error(pre + k, "missing: a load needs name, joint and force = [Fx, Fy] [N]")
+        name = _str(ctx, pre + "name", ld["name"])
+        joint = _str(ctx, pre + "joint", ld["joint"])
+        force = _floats(ctx, pre + "force", ld["force"], 2, " [N]")
+        prof = None
+        if "profile" in ld:
+            p = _table(ctx, pre + "profile", ld["profile"])
+            _unknown(ctx, p, _PROFILE_KEYS, pre + "profile.")
+            for k in ("of", "x", "y"):
+                if k not in p:
+                    raise ctx.error(f"{pre}profile.{k}", "missing: a profile needs of, x and y (and joint, axis "
+                                    "for a position or velocity table)")
+            of = _str(ctx, pre + "profile.of", p["of"], ("crank_angle", "position", "velocity"))
+            try:
+                prof = Profile(of, tuple(_floats(ctx, pre + "profile.x", p["x"])),
+                               tuple(_floats(ctx, pre + "profile.y", p["y"])),
+                               _str(ctx, pre + "profile.joint", p["joint"]) if "joint" in p else None,
+                               tuple(_floats(ctx, pre + "profile.axis", p["axis"], 2)) if "axis" in p else None,
+                               _str(ctx, pre + "profile.stroke", p.get("stroke", "both")))
+            except InputError as e:
+                raise ctx.error(pre + "profile", str(e)) from None
+        try:
+            mech.load(name, joint, force, profile=prof)
+        except InputError as e:
+            raise ctx.error(pre + "name", str(e)) from None
 
 
 def _effects(ctx, v):
@@ -632,6 +699,8 @@ def parse_scene(data: Mapping, *, source: str | None = None, text: str | None = 
         raise ctx.error(None, f"a scene must be a table, got {_typename(data)}")
     _unknown(ctx, data, _TOP_KEYS, "")
     entry, params, mech = _mechanism(ctx, data)
+    if "loads" in data:
+        _loads(ctx, data["loads"], mech)
     # the mechanism's preset scene; an accuracy preset replaces its number of time
     # elements, hold and tolerances, a method its hold (keys given in the file still win)
     kw: dict[str, Any] = entry.preset.scene_arguments()
