@@ -44,6 +44,9 @@ sys.path.insert(0, HERE)
 import kedfem as kf  # noqa: E402
 from kedfem.fe.effects import LINEAR_EFFECTS  # noqa: E402
 import linkages  # noqa: E402
+sys.path.insert(0, os.path.join(HERE, "..", "examples"))
+import press  # noqa: E402
+import shaper  # noqa: E402
 import mechanisms  # noqa: E402
 from kedfem.analysis.defaults import MOULD_EFFECTS  # noqa: E402
 from kedfem.io.scenefile import preset  # noqa: E402
@@ -78,6 +81,10 @@ def cases(quick: bool):
     })
     for name, (build, eff, damp) in linkages.CASES.items():
         out[name + "*"] = (build(), dict(effects=eff, damping=damp))
+    # process loads (examples/): kinks where the tool meets and leaves the part
+    process = ("inertia", "coupling", "axial_stiffening", "gravity", "loads")
+    out["press, forming load*"] = (press.build(), dict(effects=process, damping=z2))
+    out["shaper, cutting load*"] = (shaper.build(), dict(effects=process, damping=z2))
     return out
 
 

@@ -36,7 +36,7 @@ names or in brackets)::
     of = "position"                     # "crank_angle" [deg] | "position" [m] | "velocity" [m/s]
     joint = "D"                         # position / velocity: the joint read ...
     axis = [-1.0, 0.0]                  # ... along this direction
-    x = [-0.69, -0.685, -0.215, -0.21]  # abscissae, non-decreasing (one given twice: a step)
+    x = [-0.69, -0.67, -0.23, -0.21]    # abscissae, non-decreasing (one given twice: a step)
     y = [0.0, 1.0, 1.0, 0.0]            # factors
     stroke = "forward"                  # "both" | "forward" (moving along +axis) | "return"
 
