@@ -790,12 +790,14 @@ class _Run:
         elif self._stab_need and self.levels[-1].n < self._stab_need:
             why = ("in its error; not needed for a verdict this clear" if self.stable_beyond_doubt()
                    else "not in its error: give more elements")
-            by = (f"by at most a factor {1.0 + bound:.3g}" if math.isfinite(bound)
+            by = (f"by at most a factor {1.0 + bound:.2g}" if math.isfinite(bound) and bound < 9.0
+                  else f"by a factor of up to {1.0 + bound:.0e}" if math.isfinite(bound)
                   else "by a factor too large to bound")
             note = (f"{self.levels[-1].n} time elements damp the modes up to {self._stab_f:.4g} Hz numerically "
                     f"by more than {self.scene.rtol or 1e-3:.0e} per cycle: the spectral radius is too low, "
                     f"{by} ({why}; resolved from {self._stab_need} elements)")
-        return Stability(rho[-1], err, verdict, self.scheme.name, self.levels[-1].n, note)
+        return Stability(rho[-1], err, verdict, self.scheme.name, self.levels[-1].n, note,
+                         conservative=bool(undamped(self.scene) and verdict == "marginal"))
 
     def result(self, lv: _Level, n_out: int, error=None, shared_cache: bool = True,
                stability: Stability | None = None) -> PeriodicResult:

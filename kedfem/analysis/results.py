@@ -140,12 +140,33 @@ class Stability:
     scheme: str
     elements: int
     note: str = ""
+    conservative: bool = False
 
     def describe(self) -> str:
-        """One line: spectral radius, its error and the verdict (and its caveat)."""
-        err = f" +- {self.error:.1e}" if self.error is not None else ""
+        """One line: spectral radius, its error and the verdict (and its caveat).
+
+        The radius is printed to the digits its error leaves: ``0.2589 +- 5e-05``; ``below
+        2.1e-01`` when the error exceeds it (a clear verdict from a number the numerical damping
+        lowered by orders of magnitude); four digits without an estimate; for an undamped
+        (conservative) scene, 1 by structure with the computed value named as the scheme's.
+        """
         note = f" ({self.note})" if self.note else ""
-        return f"spectral radius {self.spectral_radius:.6g}{err} -> {self.verdict}{note}"
+        return f"spectral radius {self.radius_text()} -> {self.verdict}{note}"
+
+    def radius_text(self) -> str:
+        """The spectral radius as :meth:`describe` prints it."""
+        rho, err = self.spectral_radius, self.error
+        if self.conservative:
+            return (f"1 by structure (a conservative scene; the computed {rho:.1e} is the scheme's numerical "
+                    "damping)")
+        if err is None:
+            return f"{rho:.4g} (no error estimate)"
+        if not math.isfinite(err):
+            return f"{rho:.1e}, error not bounded"
+        if err >= abs(rho):
+            return f"below {abs(rho) + err:.1e}"
+        digits = min(10, max(1, math.floor(math.log10(abs(rho))) - math.floor(math.log10(err)) + 1))
+        return f"{rho:.{digits}g} +- {err:.0e}"
 
 
 log = logging.getLogger(__name__)
