@@ -233,11 +233,38 @@ def _cmd_run(args) -> int:
             text = _summary_only(res, args, ld.source, t0, format_summary)
     print()
     print(text)
-    if args.strict and not (res.converged and res.stable and (res.error is None or res.error.met)):
-        print("kedfem: --strict: the response did not converge, is unstable, or its estimated error "
-              "exceeds the tolerance", file=sys.stderr)
-        return EXIT_STRICT
+    if args.strict:
+        failed = strict_failures(res)
+        if failed:
+            print("kedfem: --strict: " + "; ".join(failed), file=sys.stderr)
+            return EXIT_STRICT
     return 0
+
+
+def strict_failures(res) -> list[str]:
+    """What ``--strict`` fails on: an iteration that did not converge, a response that is not
+    stable, an estimated error above the tolerance, and the checks the summary shows: a link
+    out of linear theory (:func:`kedfem.analysis.plausibility.check_result`) or with a safety
+    factor below 1 against yield, Goodman or Soderberg (:func:`kedfem.analysis.fatigue.fatigue_table`)."""
+    import warnings
+    from .analysis.fatigue import fatigue_table
+    from .analysis.plausibility import check_result
+    out = []
+    if not res.converged:
+        out.append("the non-linear iteration did not converge")
+    if not res.stable:
+        out.append(f"the response is not stable ({res.stability.verdict if res.stability else 'unstable'})")
+    if res.error is not None and not res.error.met:
+        out.append(f"the estimated error {res.error.peak:.1e} exceeds the tolerance")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the solve warned already
+        out += check_result(res)
+    for lf in fatigue_table(res).links:
+        for name, v in (("yield", lf.safety_yield), ("Goodman", lf.safety_goodman),
+                        ("Soderberg", lf.safety_soderberg)):
+            if v is not None and v < 1.0:
+                out.append(f"link '{lf.link}': safety factor against {name} {v:.2f} < 1")
+    return out
 
 
 def _summary_only(res, args, source: str, t0: float, format_summary) -> str:
@@ -690,7 +717,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="do not estimate the mesh error (a second solve with half the elements per link)")
     r.add_argument("--strict", action="store_true",
                    help=f"exit with status {EXIT_STRICT} if the iteration did not converge, the response is "
-                   "unstable, or the estimated error exceeds the tolerance")
+                   "unstable, the estimated error exceeds the tolerance, a link leaves linear theory "
+                   "(deflection, yield) or a safety factor (yield, Goodman, Soderberg) is below 1")
     r.set_defaults(func=_cmd_run)
 
     v = sub.add_parser("validate", parents=[common], help="Table 3 and a modal-superposition check",

@@ -1,6 +1,7 @@
 """The ``kedfem`` command line: the default run end to end, every subcommand, clean errors."""
 
 import csv
+import dataclasses
 import os
 import re
 import shutil
@@ -11,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+import kedfem as kf
 
 import kedfem
 from kedfem import cli
@@ -223,3 +226,25 @@ def test_sweep_and_export_commands(tmp_path, capsys):
     import matplotlib.image as mpimg
     img = mpimg.imread(str(e / "deformed.png"))[..., :3]
     assert 0.002 < 1.0 - np.all(img > 0.97, axis=-1).mean() < 0.9 and img.std() > 0.02   # not blank
+
+
+def test_strict_fails_on_the_strength_checks_the_summary_shows():
+    """--strict fails on a link above its yield strength and below its fatigue safety factors,
+    each named, as well as on convergence, stability and the error."""
+    from kedfem.cli import strict_failures
+    m = kf.Mechanism("weak slider-crank")
+    m.ground("O", at=(0.0, 0.0))
+    m.joint("A", at=(0.05, 0.0))
+    m.slider("B", at=(0.25, 0.0), axis=(1.0, 0.0))
+    m.link("crank", "O", "A", rigid=True, mass=0.2)
+    soft = kf.Material(E=2.0e11, rho=7850.0, yield_strength=1e6, ultimate_strength=2e6, endurance_limit=1e6)
+    m.link("rod", "A", "B", material=soft, section=kf.Section.rectangle(0.008, 0.008), elements=4)
+    m.point_mass("B", 0.5)
+    m.drive("crank", speed=150.0)
+    res = kf.solve(kf.Scene(m, steps=48, estimate=False, damping=kf.ModalDamping(0.02)))
+    failed = strict_failures(res)
+    assert any("exceeds the yield strength" in f for f in failed)
+    assert any("safety factor against Goodman" in f and "< 1" in f for f in failed)
+    strong = kf.Material(E=2.0e11, rho=7850.0, yield_strength=1e9, ultimate_strength=2e9, endurance_limit=5e8)
+    m.links["rod"] = dataclasses.replace(m.links["rod"], material=strong)
+    assert strict_failures(kf.solve(kf.Scene(m, steps=48, estimate=False, damping=kf.ModalDamping(0.02)))) == []
