@@ -103,7 +103,12 @@ def test_the_frames_carry_joints_grounds_sliders_and_springs(res, series):
     ret = next(p for p in series.parts if p.name == "return")
     assert ret.kind == "spring to frame" and sym[ret.points.start] == export.SYMBOLS["frame anchor"]
     anchors = [pv.read(f).points[ret.points.start] for f in series.files[:3]]
-    np.testing.assert_array_equal(anchors[0], anchors[2])        # fixed to the frame
+    np.testing.assert_allclose(anchors[0], anchors[2], rtol=0, atol=1e-15)  # fixed: B moves along the axis
+    for f in series.files[::7]:  # the spring is drawn along its axis, whichever way its joint moves
+        pts = pv.read(f).points
+        d = pts[ret.points.start + 1, :2] - pts[ret.points.start, :2]
+        ax = np.asarray(mech.springs["return"].axis, float)
+        assert abs(d[0] * ax[1] - d[1] * ax[0]) <= 1e-12 * np.linalg.norm(d)
     np.testing.assert_allclose(g.points[ret.points.start + 1], g.points[part.points.start + 2])  # at B
     text = series.pvd.read_text()
     assert "part_kind: 1 = flexible link" in text and "symbol (points in no cell): 1 = revolute joint" in text
@@ -208,3 +213,25 @@ def test_animation_arguments_are_checked_and_a_failure_keeps_the_old_gif(series,
     with pytest.raises(OSError, match="No space"):
         render.render_animation(series, old, frames=[0, 1], window_size=(64, 64))
     assert old.read_bytes() == b"old" and sorted(p.name for p in tmp_path.iterdir()) == ["c.gif"]
+
+
+def test_a_vertical_frame_spring_on_a_joint_moving_sideways_is_drawn_vertical(tmp_path):
+    """A spring to the frame acts along its axis: drawn along it at every frame, from an anchor
+    that keeps its station on the axis (a fixed anchor drew it as a diagonal)."""
+    m = kf.Mechanism("crank on a vertical spring")
+    m.ground("O", at=(0.0, 0.0))
+    m.joint("A", at=(0.1, 0.0))
+    m.link("crank", "O", "A", material=kf.Material(E=2e11, rho=7850.0), section=kf.Section.rectangle(0.01, 0.01),
+           elements=2)
+    m.spring("lift", "A", k=1e3, axis=(0.0, 1.0))
+    m.drive("crank", speed=10.0)
+    r = kf.solve(kf.Scene(m, steps=24, estimate=False, effects=("inertia", "coupling", "springs")))
+    s = export.write_vtk_series(r, tmp_path)
+    sp = next(p for p in s.parts if p.name == "lift")
+    xs = []
+    for f in s.files:
+        pts = pv.read(f).points
+        a, b = pts[sp.points.start, :2], pts[sp.points.start + 1, :2]
+        assert abs(a[0] - b[0]) <= 1e-12 and b[1] > a[1]  # vertical, the anchor below the joint
+        xs.append(a[0])
+    assert max(xs) - min(xs) > 0.1  # the joint went round: the spring moved sideways with it

@@ -13,8 +13,9 @@ VTK layout (one ``.vtu`` per written time node, 3-D points with ``z = 0``):
   nodes (together a polyline of the link's nodes);
 * rigid links: one line between their joints; bodies: a polygon through their
   joints (a line for two joints); springs between two joints: a line;
-  springs to the frame: a line from a fixed anchor point (behind the joint
-  along the spring's axis, by 8 % of the mechanism's size) to the joint;
+  springs to the frame: a line along the spring's axis to the joint from an
+  anchor point behind it (8 % of the mechanism's size behind the joint's
+  lowest station along the axis);
 * joints and torsional springs: one extra point each, after the points of
   the parts and in no cell (so every cell stays a line or polygon), marked
   by the point data ``symbol`` (:data:`SYMBOLS`); the renderer draws them,
@@ -393,9 +394,13 @@ def mechanism_mesh(res, U: np.ndarray | None = None) -> MechanismMesh:
             continue
         pa, axis = jpos(sp.a), np.asarray(sp.axis, float)
         s = pa @ axis
-        anchor = pa.mean(axis=0) + (s.min() - s.mean() - _ANCHOR_FRACTION * size) * axis
-        x0 = np.stack([np.broadcast_to(anchor, pa.shape), pa], axis=1)
-        d = np.stack([np.zeros_like(pa), jdisp(sp.a)], axis=1)
+        # behind the joint along the spring's axis, at a fixed station of it: the spring is drawn
+        # along its axis whichever way the joint moves across it (a fixed anchor tilted a vertical
+        # spring on a joint that moves sideways into a diagonal)
+        anchor = pa + ((s.min() - _ANCHOR_FRACTION * size) - s)[:, None] * axis
+        x0 = np.stack([anchor, pa], axis=1)
+        dj = jdisp(sp.a)
+        d = np.stack([dj - (dj @ axis)[:, None] * axis, dj], axis=1)  # the anchor follows it across the axis
         add(sp.name, "spring to frame", x0, d, conn=[("line", (0, 1))], symbol=(SYMBOLS["frame anchor"], 0))
     js = list(mech.joints.values())
     add("joints", "joints", np.stack([jpos(j.name) for j in js], axis=1),
