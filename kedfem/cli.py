@@ -618,9 +618,12 @@ def _cmd_stability_map(args) -> int:
         smap = stability_map(ld.data, speeds, key, list(values), scheduler=args.scheduler,
                              max_workers=args.workers, progress=False if args.no_progress else None,
                              trust=ld.trust)
-    print(f"  {key:>24s}  first onset on the grid [rpm]")
-    for v, s in zip(smap.values, smap.onsets()):
-        print(f"  {v:24.6g}  {s * 60 / (2 * math.pi):.1f}" if math.isfinite(s) else f"  {v:24.6g}  none")
+    print(f"  {key:>24s}  first onset [rpm]: between two grid speeds (interpolated in log rho; "
+          "kedfem critical refines it)")
+    rpm = 60 / (2 * math.pi)
+    for v, s, lo, hi in zip(smap.values, smap.onsets(), *smap.onset_brackets()):
+        print(f"  {v:24.6g}  {lo * rpm:.4g} .. {hi * rpm:.4g} (about {s * rpm:.3g})" if math.isfinite(s)
+              else f"  {v:24.6g}  none on the grid")
     for v, s, why in smap.failures:
         print(f"  FAILED {key} = {v:g} at {s * 60 / (2 * math.pi):.1f} rpm: {why}")
 

@@ -134,6 +134,9 @@ def test_stability_map_serial(tmp_path):
     assert smap.spectral_radius[0, 1] == pytest.approx(rho.spectral_radius, rel=1e-12)
     on = smap.onsets()
     assert smap.speeds[0] < on[0] < on[1] <= smap.speeds[-1] or math.isnan(on[1])
+    lo, hi = smap.onset_brackets()
+    assert lo[0] < on[0] <= hi[0] and lo[0] in smap.speeds and hi[0] in smap.speeds
+    assert np.all(smap.spectral_radius[0][smap.speeds <= lo[0]] < 1) and smap.spectral_radius[0][smap.speeds == hi[0]] >= 1
     rows = list(csv.DictReader(open(smap.to_csv(tmp_path / "map.csv"))))
     assert len(rows) == 6 and rows[0]["damping.zeta"] == "0.01" and rows[0]["ok"] == "True"
     png = smap.plot(tmp_path / "map.png", marks=[(on[0], 0.01, "onset")])

@@ -178,6 +178,25 @@ class StabilityMap:
         s = self.speeds[i] + r[rows, i] * (self.speeds[np.minimum(i + 1, self.speeds.size - 1)] - self.speeds[i])
         return np.where(has, s, np.nan)
 
+    def onset_brackets(self) -> tuple[np.ndarray, np.ndarray]:
+        """The grid speeds around each of :meth:`onsets`: the onset lies between them, and the
+        interpolated value is only as good as the grid (``log rho`` is far from linear near an
+        onset; :func:`kedfem.critical_speed` refines it between them).
+
+        Returns
+        -------
+        lo, hi : ndarray, shape (n_values,)
+            [rad/s], NaN where the grid shows no onset.
+        """
+        with np.errstate(divide="ignore", invalid="ignore"):
+            g = np.log(self.spectral_radius)
+            up = (g[:, :-1] < 0) & (g[:, 1:] >= 0)
+        has = up.any(axis=1)
+        i = np.argmax(up, axis=1)
+        lo = np.where(has, self.speeds[i], np.nan)
+        hi = np.where(has, self.speeds[np.minimum(i + 1, self.speeds.size - 1)], np.nan)
+        return lo, hi
+
     def to_csv(self, path) -> Path:
         """One row per grid point: the parameter, ``speed_rad_s``, ``speed_rpm``, ``spectral_radius``,
         ``stable``, ``ok``, ``error``."""
