@@ -4,9 +4,10 @@ With the crank turning counter-clockwise the ram ``D`` runs along -x on the slow
 (from ``x = link + lever`` to ``link - lever``) and back along +x on the quick return. The tool
 is in the workpiece between ``cut_from`` and ``cut_to`` of the cutting stroke (fractions of it)
 and only on that stroke: the cutting force ``cutting_force`` holds the ram back there, reached
-over ``entry`` of travel as the tool enters and lost over as much as it leaves
-(``Profile.position("D", (-1, 0), ..., stroke="forward")``: positions along -x, the stroke that
-moves along it). The solve ends time elements where the tool enters and leaves.
+over ``entry`` of travel as the tool enters and lost over as much as it leaves, along S-curves
+(``Profile.position("D", (-1, 0), ..., stroke="forward", smooth=True)``: positions along -x, the
+stroke that moves along it; a straight ramp's kinks would ring the crank's and the lever's modes
+and cost thousands of time elements).
 
 Run::
 
@@ -36,9 +37,7 @@ def build(cutting_force: float = 2000.0, cut_from: float = 0.1, cut_to: float = 
     cut_from, cut_to : float
         Where the tool enters and leaves the workpiece, as fractions of the cutting stroke.
     entry : float
-        Travel over which the force builds up and falls away [m] (a chamfered edge; a force that
-        builds up over 5 mm of this 2.3 m/s stroke rings the stiff crank's modes and takes
-        12288 time elements instead of 768).
+        Travel over which the force builds up and falls away [m] (a chamfered edge).
     **whitworth
         Parameters of ``mechanisms.build("whitworth", ...)`` (crank, offset, lever, link, ...).
     """
@@ -54,7 +53,7 @@ def build(cutting_force: float = 2000.0, cut_from: float = 0.1, cut_to: float = 
                             f"({2 * entry} m), got cut_from={cut_from}, cut_to={cut_to}")
     m.load("cutting", "D", force=(cutting_force, 0.0),  # against the cut, along +x
            profile=kf.Profile.position("D", (-1.0, 0.0), [a, a + entry, b - entry, b], [0.0, 1.0, 1.0, 0.0],
-                                       stroke="forward"))
+                                       stroke="forward", smooth=True))
     return m
 
 

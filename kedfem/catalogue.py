@@ -53,7 +53,7 @@ from pathlib import Path
 from typing import Any
 
 from .errors import InputError, KedError, did_you_mean
-from .fe.effects import LINEAR_EFFECTS, ModalDamping
+from .fe.effects import DEFAULT_ZETA, ModalDamping
 from .trust import Located, Trust, check as check_trust, check_function, locate
 from .trust import import_module as import_located
 
@@ -81,10 +81,12 @@ class Preset:
     ----------
     steps : int, optional
         Fixed number of time elements (None: as many as the tolerance needs).
-    effects : tuple of str
-        Effects to assemble (``kedfem list``); default the linear KED set, rigid-body inertia,
-        the rigid-elastic coupling and the links' stiffening by their kinetostatic axial forces
-        (:data:`kedfem.fe.effects.LINEAR_EFFECTS`).
+    effects : tuple of str, optional
+        Effects to assemble (``kedfem list``); default None, the scene's own default
+        (:func:`kedfem.fe.effects.default_effects`): the linear KED set, rigid-body inertia, the
+        rigid-elastic coupling and the links' stiffening by their kinetostatic axial forces
+        (:data:`kedfem.fe.effects.LINEAR_EFFECTS`), and the effects the mechanism's declared
+        springs, loads, friction and gravity need, as ``kf.Scene(m)``.
     damping : Rayleigh or ModalDamping or None
         Damping model (None: undamped).
     hold : str, optional
@@ -98,17 +100,18 @@ class Preset:
     """
 
     steps: int | None = None
-    effects: tuple[str, ...] = LINEAR_EFFECTS
-    damping: Any = field(default_factory=lambda: ModalDamping(0.02))
+    effects: tuple[str, ...] | None = None
+    damping: Any = field(default_factory=lambda: ModalDamping(DEFAULT_ZETA))
     hold: str | None = None
     solver: tuple[tuple[str, Any], ...] = ()
     name: str | None = None
 
     def __post_init__(self):
         effects = (self.effects,) if isinstance(self.effects, str) else self.effects
-        if not isinstance(effects, (tuple, list)) or not all(isinstance(e, str) for e in effects):
-            raise InputError(f"Preset: effects must be effect names, got {self.effects!r}")
-        object.__setattr__(self, "effects", tuple(effects))
+        if effects is not None:
+            if not isinstance(effects, (tuple, list)) or not all(isinstance(e, str) for e in effects):
+                raise InputError(f"Preset: effects must be effect names, got {self.effects!r}")
+            object.__setattr__(self, "effects", tuple(effects))
         try:
             solver = tuple(dict(self.solver).items())
         except (TypeError, ValueError):

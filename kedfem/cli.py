@@ -500,7 +500,8 @@ def _preset_line(pre) -> str:
     parts = ["tolerance-driven" if pre.steps is None else f"steps {pre.steps}"]
     if pre.hold is not None:
         parts.append(f"hold {pre.hold}")
-    parts.append(f"effects {', '.join(pre.effects)}")
+    parts.append(f"effects {', '.join(pre.effects)}" if pre.effects is not None
+                 else "effects: the linear KED set and what the mechanism declares")
     parts.append(f"damping {describe_damping(pre.damping)}")
     if pre.solver:
         parts.append("solver " + ", ".join(f"{k} = {v!r}" for k, v in pre.solver))

@@ -37,6 +37,12 @@ def derivatives(f, t, h):
     return f0, d1, d2
 
 
+def S(u):
+    """The S-curve of a smooth profile's segment, of the fraction u in [0, 1]."""
+    u = np.clip(u, 0.0, 1.0)
+    return u**3 * (10 - 15 * u + 6 * u * u)
+
+
 def stroke_weight(v, stroke):
     """The share of a one-stroke load: 1 on its stroke, 0 on the other, 1/2 at a dead centre."""
     return 0.5 * (1 + np.sign(v)) if stroke == "forward" else 0.5 * (1 - np.sign(v))
@@ -77,10 +83,24 @@ def test_a_profile_on_an_unknown_joint_is_refused_by_the_load():
         m.load("y", "B", (0, 1), profile=[0, 1])
 
 
-def test_breaks_are_where_the_motion_reaches_the_table_kinks():
-    """The press: contact on the down-stroke, the bottom dead centre, the end of the springback on
-    the way up, each at the instant the closed-form slider-crank gives."""
+def linear_press():
+    """The press with straight ramps (kinks where the tool meets and leaves the part)."""
     m = press.build()
+    m.loads.clear()
+    down, bdc = (0.0, -1.0), 0.3
+    m.load("forming", "B", (0.0, 40e3), profile=kf.Profile.position("B", down, [bdc - 0.01, bdc], [0, 1],
+                                                                      stroke="forward"))
+    m.load("springback", "B", (0.0, 40e3), profile=kf.Profile.position("B", down, [bdc - 0.002, bdc], [0, 1],
+                                                                         stroke="return"))
+    return m
+
+
+def test_breaks_are_where_the_motion_reaches_the_table_kinks():
+    """The press with straight ramps: contact on the down-stroke, the bottom dead centre, the end
+    of the springback on the way up, each at the instant the closed-form slider-crank gives; with
+    S-curves (the example's) only the dead centre, where each stroke's load starts or stops."""
+    assert np.allclose(load_breaks(press.build(), kf.Cycle(press.build()), 1.0), [0.5], atol=1e-12)
+    m = linear_press()
     r, l, w = 0.05, 0.25, 2 * math.pi
     bdc = r + l
     t = load_breaks(m, kf.Cycle(m), m.period)
@@ -115,8 +135,8 @@ def press_by_hand(t, r=0.05, l=0.25, w=2 * math.pi, m_c=3.0, m_B=20.0, rhoA=7850
     alpha_r = cross(d, dd) / l**2
     depth, vdepth = -b_[:, 1], -vb[:, 1]
     bdc = r + l
-    share = (np.clip((depth - (bdc - travel)) / travel, 0, 1) * stroke_weight(vdepth, "forward")
-             + np.clip((depth - (bdc - springback)) / springback, 0, 1) * stroke_weight(vdepth, "return"))
+    share = (S((depth - (bdc - travel)) / travel) * stroke_weight(vdepth, "forward")
+             + S((depth - (bdc - springback)) / springback) * stroke_weight(vdepth, "return"))
     load = share[:, None] * np.array([0.0, F])
     out = []
     for k in range(t.size):
@@ -203,8 +223,8 @@ def shaper_by_hand(t, F=2000.0, cut_from=0.1, cut_to=0.9, entry=0.02):
     alpha_k = cross(dk, ad - ac) / l**2
     # the cutting stroke runs along -x (the slow one, counter-clockwise crank), from x = l + L4
     xa, xb = (l + L4) - cut_from * 2 * L4, (l + L4) - cut_to * 2 * L4
-    share = np.interp(-d_[:, 0], [-xa, -xa + entry, -xb - entry, -xb], [0.0, 1.0, 1.0, 0.0]) \
-        * stroke_weight(-vd[:, 0], "forward")
+    p_ = -d_[:, 0]
+    share = (S((p_ + xa) / entry) - S((p_ + xb + entry) / entry)) * stroke_weight(-vd[:, 0], "forward")
     load = share[:, None] * np.array([F, 0.0])
     out = []
     for k in range(t.size):
@@ -283,6 +303,7 @@ def test_the_shaper_scene_file_is_the_shaper_example():
     want = shaper.build().loads["cutting"]
     assert ld.joint == want.joint and np.allclose(ld.force, want.force)
     assert ld.profile.stroke == want.profile.stroke and np.allclose(ld.profile.axis, want.profile.axis)
+    assert ld.profile.smooth and want.profile.smooth
     assert np.allclose(ld.profile.x, want.profile.x, atol=1e-12) and np.allclose(ld.profile.y, want.profile.y)
 
 

@@ -35,7 +35,8 @@ from ..errors import AccuracyWarning, EffectWarning, InputError
 from ..motion.kinematics import Cycle, kinematics
 from ..fe.modal_damping import DampingField
 from ..fe.slots import node_crossings
-from ..fe.effects.loads import load_breaks
+from ..fe.effects.loads import load_breaks, load_force
+from ..fe.effects import declared_items
 from ..solvers.threads import one_blas_thread
 from .plausibility import check_passive_links, check_result
 from .problem import PeriodicProblem, constant_or_sampled, snapped_edges
@@ -559,7 +560,12 @@ class _Run:
         harmonic of the rigid-body motion above ``rtol / 1000`` of its
         largest (the inertia loads and the time variation of ``M, C, K``),
         (b) ``1 / (pi tau)`` of the fastest friction reversal (a regularised
-        step of time scale ``tau``). A mode is excited when its frequency
+        step of time scale ``tau``), (c) the highest harmonic of the process
+        loads (declared loads with a profile) above ``rtol / 1000`` of their
+        largest: a kink or a step of a load rings modes far above the
+        drive's harmonics (a press's forming force, kinked where the tool
+        meets and leaves the part: a 74 nm rod deflection 17 % off on 384
+        elements whose three levels agreed to 1e-5). A mode is excited when its frequency
         band (over the cycle) starts within that reach, or within the reach
         of the time variation around an excited mode (its band's top plus
         (a)). Bands come from the co-moving-frame system (the scene's
@@ -586,7 +592,8 @@ class _Run:
         f_kin = self._motion_band(level=1e-3 * sc.rtol)
         f_fr = self._friction_band()
         self._friction_reach = f_fr if f_fr > f_kin else 0.0
-        reach = max(f_kin, f_fr)
+        f_ld = self._load_band(level=1e-3 * sc.rtol)
+        reach = max(f_kin, f_fr, f_ld)
         excited = lo <= reach
         if excited.any():  # the time variation mixes an excited mode into its neighbours
             excited |= lo <= float(hi[excited].max()) + f_kin
@@ -612,6 +619,26 @@ class _Run:
             return 0.0
         env = (F[:, keep] / amp[keep]).max(axis=1)
         return float((np.flatnonzero(env > level).max() + 1) / T)
+
+    def _load_band(self, level: float, samples: int = 16384) -> float:
+        """Highest frequency [Hz] of the process loads' harmonics above ``level`` of their largest
+        (0 without a process load among the scene's effects)."""
+        mech = self.scene.mech
+        loads = [ld for ld in mech.loads.values() if ld.profile is not None]
+        if not loads or "loads" not in self.scene.effects:
+            return 0.0
+        mo = self.cycle.at(np.arange(samples) * (self.scene.period / samples))
+        at: dict[str, np.ndarray] = {}  # the loads on a joint together (two one-stroke loads meet)
+        for ld in loads:
+            at[ld.joint] = at.get(ld.joint, 0.0) + load_force(mo, ld)
+        X = np.concatenate(list(at.values()), axis=1)  # (samples, 2 per joint)
+        F = np.abs(np.fft.rfft(X - X.mean(axis=0), axis=0))[1:]
+        amp = F.max(axis=0)
+        keep = amp > 1e-9 * amp.max() if amp.size and amp.max() > 0 else np.zeros(amp.shape, bool)
+        if not keep.any():
+            return 0.0
+        env = (F[:, keep] / amp[keep]).max(axis=1)
+        return float((np.flatnonzero(env > level).max() + 1) / self.scene.period)
 
     def _band_motion(self, samples: int):
         """The rigid-body motion at ``samples`` equally spaced instants (computed once)."""
@@ -861,15 +888,17 @@ class _Run:
             self._bar = None
 
     def _unsimulated(self) -> None:
-        """Warn when the mechanism declares loads or friction and the scene leaves out ``loads``."""
+        """One :class:`EffectWarning` per declared item the scene's effects leave out (a spring and
+        its preload, a load, a friction, a gravity set with ``set_gravity``): it is not simulated."""
         mech, eff = self.scene.mech, set(self.scene.effects)
-        names = [*mech.loads, *mech.frictions]
-        if names and "loads" not in eff:
-            msg = (f"{mech.name}: the loads and friction {', '.join(names)} are declared but the scene's "
-                   f"effects ({', '.join(self.scene.effects)}) leave out 'loads', so they are not "
-                   "simulated; add 'loads' to the effects")
-            log.warning(msg)
-            warnings.warn(msg, EffectWarning, stacklevel=4)
+        for effect, items in declared_items(mech).items():
+            if effect in eff:
+                continue
+            for item in items:
+                msg = (f"{mech.name}: {item} is declared but the scene's effects ({', '.join(self.scene.effects)}) "
+                       f"leave out '{effect}', so it is not simulated; add '{effect}' to the effects")
+                log.info(msg)
+                warnings.warn(msg, EffectWarning, stacklevel=4)
 
     def _run(self) -> PeriodicResult:
         self._unsimulated()

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..fe.effects import ModalDamping, Rayleigh, check_effects, chosen
+from ..fe.effects import DEFAULT_ZETA, ModalDamping, Rayleigh, check_effects, chosen, default_effects
 from ..checks import choice, flag
 from ..errors import InputError
 from ..model.mechanism import Mechanism
@@ -56,13 +56,19 @@ class Scene:
         chosen by the solve, doubling from a coarse start until the error
         estimate of every flexible link's peak deflection and stress meets
         ``rtol``.
-    effects : sequence of str
+    effects : sequence of str, optional
         Effects to assemble (see :data:`kedfem.fe.effects.EFFECTS`); nothing
         else is assembled, and the response is iterated only if one of them
-        depends on the elastic state.
-    damping : Rayleigh or ModalDamping, optional
-        Damping model (``None``: undamped; an undamped system forced near a
-        resonance raises :class:`~kedfem.errors.ResonanceError`).
+        depends on the elastic state. Default: the linear KED set (inertia,
+        coupling, axial_stiffening) and the effects of what the mechanism
+        declares (its springs, loads and friction, a gravity set with
+        ``set_gravity``; :func:`kedfem.fe.effects.default_effects`), as the
+        command line's for a builder file. A declared item the effects leave
+        out is named in one :class:`~kedfem.errors.EffectWarning` per item.
+    damping : Rayleigh or ModalDamping or None
+        Damping model; default 2 % modal damping (as the command line's);
+        ``None``: undamped (an undamped system forced near a resonance raises
+        :class:`~kedfem.errors.ResonanceError`).
     hold : {"zoh", "foh", "magnus2"}, optional
         Shorthand for ``method=hold``: one of the paper's exponential holds.
     speed : float, optional
@@ -115,8 +121,8 @@ class Scene:
 
     mechanism: Mechanism
     steps: int | None = None
-    effects: tuple[str, ...] = ("inertia", "coupling")
-    damping: Rayleigh | ModalDamping | None = None
+    effects: tuple[str, ...] | None = None
+    damping: Rayleigh | ModalDamping | None = field(default_factory=lambda: ModalDamping(DEFAULT_ZETA))
     hold: str | None = None
     speed: float | None = None
     eps: float | None = None
@@ -162,6 +168,8 @@ class Scene:
             raise InputError(f"{owner}: rtol must be a number in (0, 1), got {rt!r}")
         if not isinstance(self.estimate, (bool, np.bool_)):
             raise InputError(f"{owner}: estimate must be True or False, got {self.estimate!r}")
+        if self.effects is None:
+            object.__setattr__(self, "effects", default_effects(self.mechanism))
         object.__setattr__(self, "effects", check_effects(self.effects))
         if self.damping is not None and not isinstance(self.damping, (Rayleigh, ModalDamping)):
             raise InputError(f"{owner}: damping must be kf.Rayleigh(...), kf.ModalDamping(...) or None, "

@@ -39,6 +39,7 @@ names or in brackets)::
     x = [-0.69, -0.67, -0.23, -0.21]    # abscissae, non-decreasing (one given twice: a step)
     y = [0.0, 1.0, 1.0, 0.0]            # factors
     stroke = "forward"                  # "both" | "forward" (moving along +axis) | "return"
+    smooth = true                       # S-curves between entries (no kinks: cheap to resolve)
 
     [damping]
     model = "rayleigh"                  # "rayleigh" | "modal" | "none"
@@ -382,7 +383,7 @@ def check_steps(v, key: str = "steps", source: str | None = None) -> int:
 _TOP_KEYS = ("name", "accuracy", "rtol", "method", "steps", "speed_rpm", "hold", "effects", "mechanism",
              "loads", "damping", "solver", "output", "sweep")
 _LOAD_KEYS = ("name", "joint", "force", "profile")
-_PROFILE_KEYS = ("of", "joint", "axis", "x", "y", "stroke")
+_PROFILE_KEYS = ("of", "joint", "axis", "x", "y", "stroke", "smooth")
 _DAMPING_KEYS = ("model", "alpha", "beta", "zeta")
 _SOLVER_KEYS = SOLVER_KEYS
 _OUTPUT_KEYS = ("dir", "plots", "csv", "npz", "vtk", "render", "modes", "scale", "every", "dofs")
@@ -512,7 +513,8 @@ def _loads(ctx, v, mech) -> None:
                                tuple(_floats(ctx, pre + "profile.y", p["y"])),
                                _str(ctx, pre + "profile.joint", p["joint"]) if "joint" in p else None,
                                tuple(_floats(ctx, pre + "profile.axis", p["axis"], 2)) if "axis" in p else None,
-                               _str(ctx, pre + "profile.stroke", p.get("stroke", "both")))
+                               _str(ctx, pre + "profile.stroke", p.get("stroke", "both")),
+                               _bool(ctx, pre + "profile.smooth", p.get("smooth", False)))
             except InputError as e:
                 raise ctx.error(pre + "profile", str(e)) from None
         try:

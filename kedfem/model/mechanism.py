@@ -301,6 +301,7 @@ class Mechanism:
     loads: dict[str, Load] = field(default_factory=dict)
     frictions: dict[str, Friction] = field(default_factory=dict)
     gravity: tuple[float, float] = (0.0, -9.80665)
+    gravity_declared: bool = False
     graph: nx.MultiGraph = field(default_factory=nx.MultiGraph, repr=False)
 
     def __post_init__(self):
@@ -943,8 +944,10 @@ class Mechanism:
         return fr
 
     def set_gravity(self, g) -> None:
-        """Set the gravity vector [m/s^2] used by the ``gravity`` effect."""
+        """Set the gravity vector [m/s^2] used by the ``gravity`` effect (and declare it: a scene
+        that names no effects simulates it, one that leaves ``gravity`` out says so)."""
         self.gravity = _vec2(self.name, "gravity", g, limit=None, unit=" m/s^2")
+        self.gravity_declared = True
 
     # ------------------------------------------------------------------ queries
     def _member_joints(self, member: str) -> tuple[str, ...]:

@@ -14,14 +14,19 @@ every instant. The quantity is
 ``"velocity"``
     the joint's velocity along the axis [m/s]; outside the table the end values hold.
 
-Between entries the factor is linear; an abscissa given twice is a step (the factor jumps
-there, as a press's force when the tool meets the part). ``stroke`` limits a position table
+Between entries the factor is linear, or with ``smooth=True`` an S-curve (the quintic
+``6u^5 - 15u^4 + 10u^3`` of the fraction ``u`` of the segment: zero slope and curvature at every
+entry, so the factor has no kinks); an abscissa given twice is a step (the factor jumps there,
+as a press's force when the tool meets the part). ``stroke`` limits a position table
 to the joint moving along ``+axis`` (``"forward"``) or ``-axis`` (``"return"``): the factor
 is zero on the other stroke, so it steps at the dead centres where it is not zero.
 
 Steps and kinks are not smoothed: the instants where the motion reaches them are found
 (:func:`kedfem.motion.profiles.breaks`) and the solve puts time-element ends there, so every
-element sees smooth data and the scheme keeps its order (docs/loads.md).
+element sees smooth data and the scheme keeps its order (docs/loads.md). A kink or a step still
+rings the machine's modes, far above the drive's harmonics, and the solve resolves every mode
+the load's harmonics reach (:meth:`kedfem.analysis.pipeline` ``resolution``): a linear table
+costs thousands of time elements where ``smooth=True`` costs tens.
 """
 
 from __future__ import annotations
@@ -59,6 +64,8 @@ class Profile:
     axis : (float, float) or None
         Unit direction of the position or velocity read.
     stroke : {"both", "forward", "return"}
+    smooth : bool
+        S-curves between the entries instead of straight lines (no kinks).
     """
 
     of: str
@@ -67,6 +74,7 @@ class Profile:
     joint: str | None = None
     axis: tuple[float, float] | None = None
     stroke: str = "both"
+    smooth: bool = False
 
     def __post_init__(self):
         what = "load profile"
@@ -87,6 +95,9 @@ class Profile:
             object.__setattr__(self, "axis", _unit(what, self.axis))
         if self.stroke not in STROKES:
             raise InputError(f"{what}: stroke must be one of {', '.join(STROKES)}, got {self.stroke!r}")
+        if not isinstance(self.smooth, (bool, np.bool_)):
+            raise InputError(f"{what}: smooth must be True or False, got {self.smooth!r}")
+        object.__setattr__(self, "smooth", bool(self.smooth))
         if self.stroke != "both" and self.of != "position":
             raise InputError(f"{what}: stroke= limits a position table to one stroke; a {self.of} table "
                              "has the direction in itself")
@@ -95,7 +106,7 @@ class Profile:
 
     # ------------------------------------------------------------------ builders
     @classmethod
-    def crank_angle(cls, degrees, factors) -> "Profile":
+    def crank_angle(cls, degrees, factors, smooth: bool = False) -> "Profile":
         """Factor against the angle the drive has turned from the drawing [deg], periodic.
 
         Parameters
@@ -103,11 +114,14 @@ class Profile:
         degrees : array_like, shape (k,)
             Non-decreasing, within ``0 .. 360``.
         factors : array_like, shape (k,)
+        smooth : bool
+            S-curves between the entries (no kinks).
         """
-        return cls("crank_angle", tuple(np.ravel(degrees)), tuple(np.ravel(factors)))
+        return cls("crank_angle", tuple(np.ravel(degrees)), tuple(np.ravel(factors)), smooth=smooth)
 
     @classmethod
-    def position(cls, joint: str, axis, positions, factors, stroke: str = "both") -> "Profile":
+    def position(cls, joint: str, axis, positions, factors, stroke: str = "both",
+                 smooth: bool = False) -> "Profile":
         """Factor against joint ``joint``'s coordinate along ``axis`` [m].
 
         Parameters
@@ -120,12 +134,14 @@ class Profile:
         factors : array_like, shape (k,)
         stroke : {"both", "forward", "return"}
             Only while the joint moves along ``+axis`` / ``-axis`` (zero on the other stroke).
+        smooth : bool
+            S-curves between the entries (no kinks).
         """
         return cls("position", tuple(np.ravel(positions)), tuple(np.ravel(factors)), joint,
-                   tuple(np.ravel(axis)) if axis is not None else None, stroke)
+                   tuple(np.ravel(axis)) if axis is not None else None, stroke, smooth)
 
     @classmethod
-    def velocity(cls, joint: str, axis, speeds, factors) -> "Profile":
+    def velocity(cls, joint: str, axis, speeds, factors, smooth: bool = False) -> "Profile":
         """Factor against joint ``joint``'s velocity along ``axis`` [m/s].
 
         Parameters
@@ -135,9 +151,11 @@ class Profile:
         speeds : array_like, shape (k,)
             Velocities ``v . axis`` [m/s], non-decreasing.
         factors : array_like, shape (k,)
+        smooth : bool
+            S-curves between the entries (no kinks).
         """
         return cls("velocity", tuple(np.ravel(speeds)), tuple(np.ravel(factors)), joint,
-                   tuple(np.ravel(axis)) if axis is not None else None)
+                   tuple(np.ravel(axis)) if axis is not None else None, smooth=smooth)
 
     # ------------------------------------------------------------------ reading
     def table(self, q: np.ndarray) -> np.ndarray:
@@ -153,6 +171,12 @@ class Profile:
             q = np.mod(q, 360.0)
         # np.interp takes the last of equal abscissae on the right of a step: the factor after it
         out = np.interp(q, x, y)
+        if self.smooth:  # the same segment, along an S-curve of its fraction
+            k = np.clip(np.searchsorted(x, q, side="right") - 1, 0, x.size - 2)
+            w = x[k + 1] - x[k]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                u = np.clip(np.where(w > 0, (q - x[k]) / w, 1.0), 0.0, 1.0)
+            out = y[k] + (y[k + 1] - y[k]) * (u**3 * (10.0 - 15.0 * u + 6.0 * u * u))
         steps = np.flatnonzero(np.diff(x) == 0.0)
         for i in steps:
             out = np.where(q == x[i], y[i + 1], out)
@@ -161,8 +185,13 @@ class Profile:
     @property
     def levels(self) -> np.ndarray:
         """Abscissae where the factor kinks or steps (k,) [deg, m or m/s]: every table entry whose
-        neighbouring slopes differ (the ends too, where the end value holds beyond them)."""
+        neighbouring slopes differ (the ends too, where the end value holds beyond them); with
+        ``smooth`` the steps only."""
         x, y = np.asarray(self.x), np.asarray(self.y)
+        if self.smooth:
+            i = np.flatnonzero((np.diff(x) == 0.0) & (np.diff(y) != 0.0))
+            out = np.unique(x[i])
+            return np.mod(out, 360.0) if self.of == "crank_angle" else out
         if self.of == "crank_angle":
             xs = np.concatenate([x[-1:] - 360.0, x, x[:1] + 360.0])
             ys = np.concatenate([y[-1:], y, y[:1]])

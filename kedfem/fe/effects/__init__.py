@@ -44,7 +44,7 @@ from .inertia import Inertia
 from .loads import Loads
 from .springs import Springs
 
-__all__ = ["EFFECTS", "LINEAR_EFFECTS", "Effect", "register_effect", "check_effects", "chosen", "Rayleigh",
+__all__ = ["EFFECTS", "LINEAR_EFFECTS", "declared_items", "default_effects", "DEFAULT_ZETA", "Effect", "register_effect", "check_effects", "chosen", "Rayleigh",
            "ModalDamping"]
 
 _BUILT_IN = (
@@ -63,6 +63,36 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in _BUILT_IN}
 #: The linear KED effect set: rigid-body inertia, the rigid-elastic coupling and the links'
 #: stiffening by their kinetostatic axial forces.
 LINEAR_EFFECTS = ("inertia", "coupling", "axial_stiffening")
+
+
+def declared_items(mech) -> dict[str, list[str]]:
+    """The effects a mechanism's declared items need, with the items: ``"springs"`` (springs,
+    torsional springs; a spring's preload named as such), ``"loads"`` (loads, friction),
+    ``"gravity"`` (a gravity vector set with ``set_gravity``). Effects without items are left out."""
+    out: dict[str, list[str]] = {}
+    sp = [f"spring '{n}'" + (" (its preload)" if getattr(s, "preload", 0.0) else "") for n, s in mech.springs.items()]
+    sp += [f"torsional spring '{n}'" + (" (its preload)" if getattr(s, "preload", 0.0) else "")
+           for n, s in mech.torsional_springs.items()]
+    if sp:
+        out["springs"] = sp
+    ld = [f"load '{n}'" for n in mech.loads] + [f"friction '{n}'" for n in mech.frictions]
+    if ld:
+        out["loads"] = ld
+    if getattr(mech, "gravity_declared", False):
+        out["gravity"] = [f"gravity {tuple(mech.gravity)} m/s^2"]
+    return out
+
+
+def default_effects(mech) -> tuple[str, ...]:
+    """The effects of a scene that names none (``kf.Scene(m)``, a builder file without a preset
+    on the command line): the linear KED set (:data:`LINEAR_EFFECTS`) and those the mechanism's
+    declared items need (:func:`declared_items`: its springs, loads and friction, a gravity set
+    with ``set_gravity``)."""
+    return LINEAR_EFFECTS + tuple(e for e in declared_items(mech) if e not in LINEAR_EFFECTS)
+
+
+#: The damping of a scene that names none: 2 % of critical in every mode.
+DEFAULT_ZETA = 0.02
 
 
 def register_effect(effect: Effect) -> Effect:
