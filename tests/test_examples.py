@@ -1,6 +1,7 @@
 """Every example script runs (with small parameters) and every example scene file solves."""
 
 import importlib.util
+import math
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +22,7 @@ def load(name):
 
 
 def test_every_example_is_tested():
-    tested = {"linkage", "speed_sweep", "export_render"}
+    tested = {"linkage", "speed_sweep", "export_render", "press", "shaper"}  # the last two: also test_process_loads
     assert {p.stem for p in EXAMPLES.glob("*.py")} == tested
 
 
@@ -59,3 +60,25 @@ def test_example_scene_solves(path):
     assert res.elements == 24 and res.U.shape == (res.n, res.model.n_dof) and res.n >= 360
     assert np.isfinite(res.U).all()
     assert res.stable and outputs.dir.name
+
+
+def test_press(capsys):
+    """The press's main: a tolerance-driven solve; the forming force is in its loads."""
+    res = load("press").main()
+    out = capsys.readouterr().out
+    assert res.error.met and "Loads on the machine" in out and "drive crank at O" in out
+    assert 3.5e4 < res.loads().magnitude("B", "rod", "rigid").max() < 4.5e4  # 40 kN at the bottom dead centre
+
+
+def test_shaper():
+    """The shaper cuts on its slow stroke: the cutting force raises the drive's mean torque by the
+    cutting work per cycle over 2 pi (its main is a tolerance-driven solve of about a minute)."""
+    mod = load("shaper")
+    eff = ("inertia", "coupling", "gravity", "loads")
+    mean = []
+    for force in (0.0, 2000.0):
+        res = kf.solve(kf.Scene(mod.build(cutting_force=force), effects=eff, steps=96, estimate=False))
+        mean.append(res.loads(elastic=False).torque(response="rigid").mean())
+    # cutting work: 2 kN over the cut less the two ramps' halves (S-curves: half the entry each)
+    work = 2000.0 * (0.8 * 0.6 - 0.02)
+    assert (mean[1] - mean[0]) == pytest.approx(work / (2 * math.pi), rel=2e-3)

@@ -269,7 +269,7 @@ def test_friction_in_a_sliding_pair():
 def test_declared_friction_without_the_loads_effect_warns():
     m = _cantilever_with_block(0.0, speed=2 * math.pi * 0.1)
     m.friction("slide", "B", force=20.0, smoothing=2e-3)
-    with pytest.warns(kf.EffectWarning, match="slide are declared but .* leave out 'loads'"):
+    with pytest.warns(kf.EffectWarning, match="friction 'slide' is declared but .* leave out 'loads'"):
         kf.solve(kf.Scene(m, effects=("inertia", "coupling"), damping=kf.ModalDamping(0.05), steps=24,
                           estimate=False))
 

@@ -33,7 +33,8 @@ names or in brackets)::
     joint = "D"
     force = [2000.0, 0.0]               # [N], times the profile's factor
     [loads.profile]                     # optional: constant force without it
-    of = "position"                     # "crank_angle" [deg] | "position" [m] | "velocity" [m/s]
+    of = "position"                     # kedfem.model.profiles.PROFILE_QUANTITIES: the crank's
+                                        # angle [deg], a joint's position [m] or velocity [m/s]
     joint = "D"                         # position / velocity: the joint read ...
     axis = [-1.0, 0.0]                  # ... along this direction
     x = [-0.69, -0.67, -0.23, -0.21]    # abscissae, non-decreasing (one given twice: a step)
@@ -487,7 +488,7 @@ def _floats(ctx, key, v, size=None, unit=""):
 
 def _loads(ctx, v, mech) -> None:
     """``[[loads]]``: process loads added to the built mechanism (``Mechanism.load``)."""
-    from ..model.profiles import Profile
+    from ..model.profiles import PROFILE_QUANTITIES, Profile
     if not isinstance(v, list) or not all(isinstance(x, dict) for x in v):
         raise ctx.error("loads", "must be an array of tables ([[loads]] with name, joint, force and profile)")
     for i, ld in enumerate(v):
@@ -506,8 +507,8 @@ def _loads(ctx, v, mech) -> None:
             for k in ("of", "x", "y"):
                 if k not in p:
                     raise ctx.error(f"{pre}profile.{k}", "missing: a profile needs of, x and y (and joint, axis "
-                                    "for a position or velocity table)")
-            of = _str(ctx, pre + "profile.of", p["of"], ("crank_angle", "position", "velocity"))
+                                    "for a joint's table)")
+            of = _str(ctx, pre + "profile.of", p["of"], PROFILE_QUANTITIES)
             try:
                 prof = Profile(of, tuple(_floats(ctx, pre + "profile.x", p["x"])),
                                tuple(_floats(ctx, pre + "profile.y", p["y"])),
