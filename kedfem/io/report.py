@@ -54,6 +54,18 @@ def _angle(a: float) -> str:
     return f"{math.degrees(a) % 360:7.1f}" if math.isfinite(a) else "      -"
 
 
+def crank_angle_convention(mech) -> str:
+    """What the crank angles of a mechanism's results are, in words: a driven link's absolute
+    angle (its ``a -> b`` line from +x), or a driven body's rotation from the drawing."""
+    if not mech.drives:
+        return "none (no drive)"
+    d = mech.drives[0]
+    if d.member in mech.links:
+        lk = mech.links[d.member]
+        return f"of the crank '{d.member}', absolute (its {lk.a} -> {lk.b} line from +x, counter-clockwise)"
+    return f"of the crank '{d.member}', its rotation from the drawing (counter-clockwise)"
+
+
 def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_dir: Path | None,
                    source: str, scene_time: float, mesh=None, fatigue=None, loads=None,
                    mesh_note: str = "") -> str:
@@ -104,8 +116,8 @@ def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_di
             se = pm(e.stress) if (e and math.isfinite(p.stress)) else pm(None)
             L.append(f"  {p.link:<16s} {p.deflection * 1e3:15.5g} {de} {_angle(p.deflection_angle):>8s} {st} "
                      f"{se} {_angle(p.stress_angle):>8s} {ss}")
-        L.append("  (deflection: mid-span, relative to the chord; stress: max |N|/A + |M| c/I; angles: crank;")
-        L.append("   +-: estimated relative error of the peak)")
+        L.append("  (deflection: mid-span, relative to the chord; stress: max |N|/A + |M| c/I;")
+        L.append(f"   angles: {crank_angle_convention(res.model.mech)}; +-: estimated relative error of the peak)")
         if err is not None:
             L.append(f"  time-discretisation error: {err.describe()}")
         else:
