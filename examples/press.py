@@ -81,9 +81,7 @@ def main():
     scene = kf.Scene(build(), effects=("inertia", "coupling", "axial_stiffening", "gravity", "loads"),
                      damping=kf.ModalDamping(0.02))
     res = kf.solve(scene)
-    print(res.summary())
-    loads = res.loads()
-    print(loads.summary())
+    print(res.summary())  # with the loads on the machine (res.loads(): bearing forces, drive torque)
     return res
 
 

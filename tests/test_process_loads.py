@@ -342,3 +342,18 @@ def test_press_elastic_response_converges_with_an_honest_estimate():
     assert est >= true / 3
     # the forming force is in the answer: the rod's peak stress is its compression under it
     assert abs(q.stress - 40e3 / 0.03**2) / q.stress < 0.05
+
+
+def test_a_load_whose_table_lies_outside_the_travel_is_named():
+    """A table on the wrong side of the axis (positions along +x where the joint's are negative
+    along it) never acts: the solve says so instead of adding nothing silently."""
+    m = press.build()
+    m.loads.clear()
+    m.load("wrong sign", "B", (0.0, 40e3), profile=kf.Profile.position("B", (0.0, 1.0), [0.29, 0.3], [0, 1]))
+    with pytest.warns(kf.EffectWarning, match=r"load 'wrong sign' never acts.*-0\.3 to -0\.2 m.*0\.29 to 0\.3 m"):
+        kf.solve(kf.Scene(m, effects=RIGID, steps=24, estimate=False))
+
+
+def test_crank_angles_that_look_like_radians_warn():
+    with pytest.warns(UserWarning, match="in degrees and all lie within 2 pi"):
+        kf.Profile.crank_angle([0.0, math.pi], [0.0, 1.0])

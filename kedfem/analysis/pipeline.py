@@ -35,7 +35,7 @@ from ..errors import AccuracyWarning, EffectWarning, InputError
 from ..motion.kinematics import Cycle, kinematics
 from ..fe.modal_damping import DampingField
 from ..fe.slots import node_crossings
-from ..fe.effects.loads import load_breaks, load_force
+from ..fe.effects.loads import idle_loads, load_breaks, load_force
 from ..fe.effects import declared_items
 from ..solvers.threads import one_blas_thread
 from .plausibility import check_passive_links, check_result
@@ -592,7 +592,7 @@ class _Run:
         f_kin = self._motion_band(level=1e-3 * sc.rtol)
         f_fr = self._friction_band()
         self._friction_reach = f_fr if f_fr > f_kin else 0.0
-        f_ld = self._load_band(level=1e-3 * sc.rtol)
+        f_ld = self._load_band(level=1e-3 * sc.rtol, f_low=float(lo.min()) if lo.size else 0.0)
         reach = max(f_kin, f_fr, f_ld)
         excited = lo <= reach
         if excited.any():  # the time variation mixes an excited mode into its neighbours
@@ -620,9 +620,12 @@ class _Run:
         env = (F[:, keep] / amp[keep]).max(axis=1)
         return float((np.flatnonzero(env > level).max() + 1) / T)
 
-    def _load_band(self, level: float, samples: int = 16384) -> float:
+    def _load_band(self, level: float, f_low: float = 0.0, samples: int = 16384) -> float:
         """Highest frequency [Hz] of the process loads' harmonics above ``level`` of their largest
-        (0 without a process load among the scene's effects)."""
+        (0 without a process load among the scene's effects), a harmonic above the lowest mode
+        ``f_low`` [Hz] weighted by ``(f_low / f)^2``: it drives the stiffer modes there, whose
+        response to it is smaller by their stiffness (a pump's smooth stroke load reached 1.9 kHz
+        unweighted, 3072 time elements where 384 met the tolerance to 1e-5)."""
         mech = self.scene.mech
         loads = [ld for ld in mech.loads.values() if ld.profile is not None]
         if not loads or "loads" not in self.scene.effects:
@@ -638,7 +641,11 @@ class _Run:
         if not keep.any():
             return 0.0
         env = (F[:, keep] / amp[keep]).max(axis=1)
-        return float((np.flatnonzero(env > level).max() + 1) / self.scene.period)
+        f = np.arange(1, env.size + 1) / self.scene.period
+        if f_low > 0.0:
+            env = env * np.minimum(1.0, (f_low / f) ** 2)
+        over = np.flatnonzero(env > level)
+        return float(f[over.max()]) if over.size else 0.0
 
     def _band_motion(self, samples: int):
         """The rigid-body motion at ``samples`` equally spaced instants (computed once)."""
@@ -817,7 +824,8 @@ class _Run:
         elif self._stab_need and self.levels[-1].n < self._stab_need:
             why = ("in its error; not needed for a verdict this clear" if self.stable_beyond_doubt()
                    else "not in its error: give more elements")
-            by = (f"by at most a factor {1.0 + bound:.2g}" if math.isfinite(bound) and bound < 9.0
+            by = (f"by at most {100.0 * bound:.2g} %" if math.isfinite(bound) and bound < 1.0
+                  else f"by at most a factor {1.0 + bound:.2g}" if math.isfinite(bound) and bound < 9.0
                   else f"by a factor of up to {1.0 + bound:.0e}" if math.isfinite(bound)
                   else "by a factor too large to bound")
             note = (f"{self.levels[-1].n} time elements damp the modes up to {self._stab_f:.4g} Hz numerically "
@@ -891,6 +899,10 @@ class _Run:
         """One :class:`EffectWarning` per declared item the scene's effects leave out (a spring and
         its preload, a load, a friction, a gravity set with ``set_gravity``): it is not simulated."""
         mech, eff = self.scene.mech, set(self.scene.effects)
+        if "loads" in eff:
+            for msg in idle_loads(mech, self.cycle):
+                log.info(msg)
+                warnings.warn(msg, EffectWarning, stacklevel=4)
         for effect, items in declared_items(mech).items():
             if effect in eff:
                 continue

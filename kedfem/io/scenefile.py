@@ -521,7 +521,9 @@ def _loads(ctx, v, mech) -> None:
         try:
             mech.load(name, joint, force, profile=prof)
         except InputError as e:
-            raise ctx.error(pre + "name", str(e)) from None
+            where = ("profile.joint" if "its profile" in str(e) else "joint" if "unknown joint" in str(e)
+                     else "name")
+            raise ctx.error(pre + where, str(e)) from None
 
 
 def _effects(ctx, v):

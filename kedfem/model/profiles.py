@@ -32,6 +32,7 @@ costs thousands of time elements where ``smooth=True`` costs tens.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -84,6 +85,10 @@ class Profile:
         if self.of == "crank_angle":
             if x[0] < 0.0 or x[-1] > 360.0:
                 raise InputError(f"{what}: crank angles must lie in 0 .. 360 deg, got {x[0]:g} .. {x[-1]:g}")
+            if x[-1] <= 2.0 * math.pi * (1.0 + 1e-9) and x[-1] - x[0] > 0.5:
+                warnings.warn(f"{what}: the crank angles {x[0]:g} .. {x[-1]:g} are in degrees and all lie "
+                              "within 2 pi: were they meant as radians? (np.degrees converts them)",
+                              UserWarning, stacklevel=4)
             if self.joint is not None or self.axis is not None:
                 raise InputError(f"{what}: a crank-angle table reads no joint or axis")
         else:

@@ -16,10 +16,32 @@ import numpy as np
 
 from ...model.mechanism import Load
 from ...motion.kinematics import Motion, slot_direction
-from ...motion.profiles import breaks, factor
+from ...motion.profiles import breaks, factor, quantity
 from .base import Chunk, Effect, StateTerms
 
-__all__ = ["Loads", "rigid_friction", "friction_law", "pair_friction", "load_force", "load_breaks"]
+__all__ = ["Loads", "rigid_friction", "friction_law", "pair_friction", "load_force", "load_breaks", "idle_loads"]
+
+
+def idle_loads(mech, cycle, samples: int = 720) -> list[str]:
+    """A message for every process load whose factor is zero over the whole cycle (its table lies
+    outside the joint's travel, or its stroke never comes): it would add nothing, silently."""
+    out = []
+    mo = None
+    for ld in mech.loads.values():
+        if ld.profile is None:
+            continue
+        if mo is None:
+            mo = cycle.at(np.arange(samples) * (mech.period / samples))
+        f = factor(ld.profile, mo)
+        if not np.any(f != 0.0):
+            q, _rate = quantity(ld.profile, mo)
+            unit = {"crank_angle": "deg", "position": "m", "velocity": "m/s"}[ld.profile.of]
+            out.append(f"{mech.name}: load '{ld.name}' never acts: its profile's factor is zero over the whole "
+                       f"cycle ({ld.profile.of} from {q.min():.6g} to {q.max():.6g} {unit}, the table from "
+                       f"{ld.profile.x[0]:.6g} to {ld.profile.x[-1]:.6g} {unit}"
+                       + (f", stroke '{ld.profile.stroke}'" if ld.profile.stroke != "both" else "")
+                       + "); check the table's sign and the axis")
+    return out
 
 
 def load_breaks(mech, cycle, period: float) -> np.ndarray:
