@@ -73,3 +73,9 @@ def test_each_declared_item_left_out_warns_once(tmp_path, effects, left_out):
     for item in left_out:
         assert sum(item in s for s in said) == 1, (item, said)
     assert len(said) == len(left_out)
+
+
+def test_static_response_names_a_declared_item_its_effects_leave_out(tmp_path):
+    _path, m = build(tmp_path)
+    with pytest.warns(EffectWarning, match=r"spring 'return' \(its preload\) is declared but the effects \(gravity, loads\)"):
+        kf.static_response(m, effects=("gravity", "loads"))

@@ -36,7 +36,7 @@ from ..motion.kinematics import Cycle, kinematics
 from ..fe.modal_damping import DampingField
 from ..fe.slots import node_crossings
 from ..fe.effects.loads import idle_loads, load_breaks, load_force
-from ..fe.effects import declared_items
+from ..fe.effects import unsimulated
 from ..solvers.threads import one_blas_thread
 from .plausibility import check_passive_links, check_result
 from .problem import PeriodicProblem, constant_or_sampled, snapped_edges
@@ -903,14 +903,9 @@ class _Run:
             for msg in idle_loads(mech, self.cycle):
                 log.info(msg)
                 warnings.warn(msg, EffectWarning, stacklevel=4)
-        for effect, items in declared_items(mech).items():
-            if effect in eff:
-                continue
-            for item in items:
-                msg = (f"{mech.name}: {item} is declared but the scene's effects ({', '.join(self.scene.effects)}) "
-                       f"leave out '{effect}', so it is not simulated; add '{effect}' to the effects")
-                log.info(msg)
-                warnings.warn(msg, EffectWarning, stacklevel=4)
+        for msg in unsimulated(mech, self.scene.effects):
+            log.info(msg)
+            warnings.warn(msg, EffectWarning, stacklevel=4)
 
     def _run(self) -> PeriodicResult:
         self._unsimulated()

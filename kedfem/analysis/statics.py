@@ -16,14 +16,15 @@ rigid-body inertia of a running mechanism's crank position).
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse.linalg as spla
 
-from ..errors import KedError
+from ..errors import EffectWarning, KedError
 from ..fe.assembler import Assembler
-from ..fe.effects import check_effects
+from ..fe.effects import check_effects, unsimulated
 from ..fe.model import FEModel
 from ..model.mechanism import Mechanism, require_mechanism
 from ..motion.kinematics import Motion
@@ -188,6 +189,8 @@ def static_response(mechanism: Mechanism, effects=("gravity", "loads"), crank_an
     """
     require_mechanism(mechanism, "static_response")
     eff = check_effects(effects)
+    for msg in unsimulated(mechanism, eff):  # a spring's preload or a load the effects leave out
+        warnings.warn(msg, EffectWarning, stacklevel=2)
     model = FEModel(mechanism)
     motion = _motion_at(mechanism, crank_angle)
     asm = Assembler(model, motion, eff)

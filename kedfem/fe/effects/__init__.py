@@ -44,7 +44,7 @@ from .inertia import Inertia
 from .loads import Loads
 from .springs import Springs
 
-__all__ = ["EFFECTS", "LINEAR_EFFECTS", "declared_items", "default_effects", "DEFAULT_ZETA", "Effect", "register_effect", "check_effects", "chosen", "Rayleigh",
+__all__ = ["EFFECTS", "LINEAR_EFFECTS", "declared_items", "default_effects", "unsimulated", "DEFAULT_ZETA", "Effect", "register_effect", "check_effects", "chosen", "Rayleigh",
            "ModalDamping"]
 
 _BUILT_IN = (
@@ -80,6 +80,16 @@ def declared_items(mech) -> dict[str, list[str]]:
         out["loads"] = ld
     if getattr(mech, "gravity_declared", False):
         out["gravity"] = [f"gravity {tuple(mech.gravity)} m/s^2"]
+    return out
+
+
+def unsimulated(mech, effects) -> list[str]:
+    """One message per declared item (:func:`declared_items`) that ``effects`` leave out."""
+    out = []
+    for effect, items in declared_items(mech).items():
+        if effect not in effects:
+            out += [f"{mech.name}: {item} is declared but the effects ({', '.join(effects)}) leave out "
+                    f"'{effect}', so it is not simulated; add '{effect}' to the effects" for item in items]
     return out
 
 
