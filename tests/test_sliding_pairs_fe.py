@@ -90,8 +90,11 @@ def _cantilever_with_block(F: float, speed: float) -> kf.Mechanism:
 def test_quasi_static_moving_load_matches_the_cantilever_closed_form():
     F, EI, L = 100.0, 2.0e11 * 0.02 * 0.01**3 / 12, 0.5
     m = _cantilever_with_block(F, speed=2 * math.pi * 0.1)  # 0.1 Hz, the beam's first mode 33 Hz
+    # a fixed number of elements: a tolerance-driven solve refines to 12288 here, on the noise of
+    # the beam's axial-force history (its axial force is nearly zero; the history is normalised by
+    # its own largest value: noted for the estimate, issue 25)
     res = kf.solve(kf.Scene(m, effects=("inertia", "coupling", "loads"), damping=kf.ModalDamping(0.05),
-                            rtol=1e-6))
+                            steps=768, estimate=False))
     a = res.motion.position("B")[:, 0]  # the block's abscissa on the beam
     tip = res.joint_displacement("T")[:, 1]
     closed = -F * a**2 * (3 * L - a) / (6 * EI)  # cantilever, point load at a, deflection at L
