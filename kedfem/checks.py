@@ -13,7 +13,7 @@ import numpy as np
 
 from .errors import InputError, did_you_mean
 
-__all__ = ["real", "integer", "flag", "names", "name", "choice", "floats"]
+__all__ = ["real", "integer", "flag", "names", "name", "choice", "floats", "pair", "direction"]
 
 
 def _short(v) -> str:
@@ -122,3 +122,31 @@ def floats(owner: str, what: str, value, *, ndim: int = 1, max_size: int = 1_000
     if not np.all(np.isfinite(a)):
         raise InputError(f"{owner}: {what} must be finite numbers{unit}, got {_short(value)}")
     return a
+
+
+def pair(owner: str, name: str, value, *, limit: float | None = None, unit: str = "") -> tuple[float, float]:
+    """Two finite numbers (x, y); with ``limit``, each of magnitude at most ``limit``."""
+    if isinstance(value, (str, bytes, dict)) or (isinstance(value, (tuple, list))
+                                                 and any(isinstance(x, (str, bytes, bool)) for x in value)):
+        raise InputError(f"{owner}: {name} must be a pair of numbers, got {value!r}")
+    try:
+        arr = np.asarray(value, dtype=float).reshape(-1)
+    except (TypeError, ValueError, OverflowError):
+        raise InputError(f"{owner}: {name} must be a pair of numbers, got {value!r}") from None
+    if arr.shape != (2,) or not np.all(np.isfinite(arr)):
+        raise InputError(f"{owner}: {name} must be two finite numbers (x, y){unit and ' [' + unit.strip() + ']'}, "
+                         f"got {value!r}")
+    if limit is not None and np.max(np.abs(arr)) > limit:
+        raise InputError(f"{owner}: {name} = ({arr[0]:.6g}, {arr[1]:.6g}){unit} exceeds the largest magnitude a "
+                         f"model may hold, {limit:g}{unit} (a unit mistake?)")
+    return (float(arr[0]), float(arr[1]))
+
+
+def direction(owner: str, name: str, value) -> tuple[float, float]:
+    """A direction, normalised (scaled first, so that huge or subnormal components normalise exactly)."""
+    ax = np.asarray(pair(owner, name, value))
+    big = float(np.max(np.abs(ax)))
+    if big == 0.0:
+        raise InputError(f"{owner}: {name} must be a non-zero vector")
+    ax = ax / big
+    return tuple(float(v) for v in ax / float(np.hypot(*ax)))

@@ -36,6 +36,7 @@ from ..motion.kinematics import Cycle, kinematics
 from ..fe.modal_damping import DampingField
 from ..fe.slots import node_crossings
 from ..fe.effects.loads import idle_loads, load_breaks, load_force
+from ..motion.profiles import distinct_instants
 from ..fe.effects import unsimulated
 from ..solvers.threads import one_blas_thread
 from .plausibility import check_passive_links, check_result
@@ -226,6 +227,23 @@ def _coarser(scheme, n: int) -> int | None:
     return None
 
 
+def _harmonic_reach(X: np.ndarray, period: float, level: float, f_low: float = 0.0) -> float:
+    """Highest frequency [Hz] of the harmonics of the periodic samples ``X`` (samples, k) above
+    ``level`` of each column's largest (the columns below 1e-9 of the largest left out), those
+    above ``f_low`` [Hz] weighted by ``(f_low / f)^2`` (0: none); 0 when none is above it."""
+    F = np.abs(np.fft.rfft(X - X.mean(axis=0), axis=0))[1:]
+    amp = F.max(axis=0)
+    keep = amp > 1e-9 * amp.max() if amp.size and amp.max() > 0 else np.zeros(amp.shape, bool)
+    if not keep.any():
+        return 0.0
+    env = (F[:, keep] / amp[keep]).max(axis=1)
+    f = np.arange(1, env.size + 1) / period
+    if f_low > 0.0:
+        env = env * np.minimum(1.0, (f_low / f) ** 2)
+    over = np.flatnonzero(env > level)
+    return float(f[over.max()]) if over.size else 0.0
+
+
 class _Run:
     """The levels of one solve and their observables on common output instants."""
 
@@ -369,8 +387,7 @@ class _Run:
             loads = (load_breaks(sc.mech, self.cycle, sc.period) if "loads" in sc.effects
                      else np.zeros(0))
             self._node_breaks = nodes
-            t = np.sort(np.concatenate([nodes, loads]))
-            self._breaks = t[np.concatenate([[True], np.diff(t) > 1e-12 * sc.period])] if t.size else t
+            self._breaks = distinct_instants(np.concatenate([nodes, loads]), sc.period)
             if nodes.size:
                 log.info("%s: %d instants where a block crosses a node of its link: element edges there",
                          sc.mech.name, nodes.size)
@@ -609,16 +626,9 @@ class _Run:
     def _motion_band(self, samples: int = 512, level: float = 1e-6) -> float:
         """Highest frequency [Hz] of the rigid-body motion's harmonics above ``level``."""
         mo = self._band_motion(samples)
-        T = self.scene.period
         X = np.concatenate([x.reshape(samples, -1) for x in (mo.a, mo.alpha, mo.omega ** 2, mo.sdd)
                             if x.size], axis=1)
-        F = np.abs(np.fft.rfft(X, axis=0))[1:]
-        amp = F.max(axis=0)
-        keep = amp > 1e-9 * amp.max() if amp.size and amp.max() > 0 else np.zeros(amp.shape, bool)
-        if not keep.any():
-            return 0.0
-        env = (F[:, keep] / amp[keep]).max(axis=1)
-        return float((np.flatnonzero(env > level).max() + 1) / T)
+        return _harmonic_reach(X, self.scene.period, level)
 
     def _load_band(self, level: float, f_low: float = 0.0, samples: int = 16384) -> float:
         """Highest frequency [Hz] of the process loads' harmonics above ``level`` of their largest
@@ -630,22 +640,12 @@ class _Run:
         loads = [ld for ld in mech.loads.values() if ld.profile is not None]
         if not loads or "loads" not in self.scene.effects:
             return 0.0
-        mo = self.cycle.at(np.arange(samples) * (self.scene.period / samples))
+        mo = self._band_motion(samples)
         at: dict[str, np.ndarray] = {}  # the loads on a joint together (two one-stroke loads meet)
         for ld in loads:
             at[ld.joint] = at.get(ld.joint, 0.0) + load_force(mo, ld)
         X = np.concatenate(list(at.values()), axis=1)  # (samples, 2 per joint)
-        F = np.abs(np.fft.rfft(X - X.mean(axis=0), axis=0))[1:]
-        amp = F.max(axis=0)
-        keep = amp > 1e-9 * amp.max() if amp.size and amp.max() > 0 else np.zeros(amp.shape, bool)
-        if not keep.any():
-            return 0.0
-        env = (F[:, keep] / amp[keep]).max(axis=1)
-        f = np.arange(1, env.size + 1) / self.scene.period
-        if f_low > 0.0:
-            env = env * np.minimum(1.0, (f_low / f) ** 2)
-        over = np.flatnonzero(env > level)
-        return float(f[over.max()]) if over.size else 0.0
+        return _harmonic_reach(X, self.scene.period, level, f_low)
 
     def _band_motion(self, samples: int):
         """The rigid-body motion at ``samples`` equally spaced instants (computed once)."""

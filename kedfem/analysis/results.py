@@ -933,7 +933,8 @@ class PeriodicResult:
             # added together over-shoot a peak on a ridge that is not along the axes)
             station = (j + dj) / sub
             h = lk.length / (lk.elements * PEAK_STATIONS * sub)
-            for x, s_ in one._block_stress(lk, r):
+            if self._blocks_on(lk):
+                s_, x = (float(a[r]) for a in one.block_stress(lk.name))
                 # the stress is kinked under a block: no parabola there, the apex itself
                 if abs(x - j * h) <= 2.0 * h:
                     v, station = max((float(vals[j]), j / sub), (s_, x / (h * sub)))
@@ -947,20 +948,6 @@ class PeriodicResult:
                                       - 0.5 * self.scene.period)))
             return float(self.block_stress(lk.name)[1][k])
         return float(self.resample(np.array([np.mod(t, self.scene.period)])).block_stress(lk.name)[1][0])
-
-    def _block_stress(self, lk, r: int) -> list[tuple[float, float]]:
-        """(abscissa [m], stress [Pa]) under every block sliding on link ``lk`` at instant ``r``."""
-        from ..fe.slots import block_abscissa, element_at
-        out = []
-        sec = lk.section
-        for jt in self.model.mech.joints.values():
-            if jt.kind != "slot" or jt.on != lk.name:
-                continue
-            x = float(block_abscissa(self.model, jt.name, self.motion)[r])
-            e, zeta = element_at(lk, x)
-            M, N = self._forces_at(lk.name, np.array([zeta]))
-            out.append((x, float(abs(N[r, e, 0]) / sec.A + abs(M[r, e, 0]) * sec.c / sec.I)))
-        return out
 
     def _angle_of(self, t: float) -> float:
         """Crank angle [rad] in ``[0, 2 pi)`` at instant ``t`` (linear in time for a constant-speed drive)."""

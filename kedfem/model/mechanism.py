@@ -23,6 +23,7 @@ import numpy as np
 
 from ..errors import InputError
 from .materials import MAX_LENGTH, Material, Section, flag, names, real
+from ..checks import direction, pair
 from . import placement
 from .profiles import Profile
 from ..errors import LengthWarning
@@ -53,21 +54,9 @@ log = logging.getLogger(__name__)
 
 
 def _vec2(owner: str, name: str, value, limit: float | None = MAX_LENGTH, unit: str = " m") -> tuple[float, float]:
-    """Two finite numbers (x, y); with ``limit``, each of magnitude at most ``limit``."""
-    if isinstance(value, (str, bytes, dict)) or (isinstance(value, (tuple, list))
-                                                 and any(isinstance(x, (str, bytes, bool)) for x in value)):
-        raise InputError(f"{owner}: {name} must be a pair of numbers, got {value!r}")
-    try:
-        arr = np.asarray(value, dtype=float).reshape(-1)
-    except (TypeError, ValueError, OverflowError):
-        raise InputError(f"{owner}: {name} must be a pair of numbers, got {value!r}") from None
-    if arr.shape != (2,) or not np.all(np.isfinite(arr)):
-        raise InputError(f"{owner}: {name} must be two finite numbers (x, y){unit and ' [' + unit.strip() + ']'}, "
-                         f"got {value!r}")
-    if limit is not None and np.max(np.abs(arr)) > limit:
-        raise InputError(f"{owner}: {name} = ({arr[0]:.6g}, {arr[1]:.6g}){unit} exceeds the largest magnitude a "
-                         f"model may hold, {limit:g}{unit} (a unit mistake?)")
-    return (float(arr[0]), float(arr[1]))
+    """Two finite numbers (x, y); with ``limit``, each of magnitude at most ``limit``
+    (:func:`kedfem.checks.pair`)."""
+    return pair(owner, name, value, limit=limit, unit=unit)
 
 
 def require_mechanism(obj, owner: str = "kedfem") -> "Mechanism":
@@ -82,14 +71,7 @@ def _short(v) -> str:
     return r if len(r) <= 60 else r[:57] + "..."
 
 
-def _unit(owner: str, name: str, value) -> tuple[float, float]:
-    """A direction, normalised (scaled first, so that huge or subnormal components normalise exactly)."""
-    ax = np.asarray(_vec2(owner, name, value, limit=None, unit=""))
-    big = float(np.max(np.abs(ax)))
-    if big == 0.0:
-        raise InputError(f"{owner}: {name} must be a non-zero vector")
-    ax = ax / big
-    return tuple(float(v) for v in ax / float(np.hypot(*ax)))
+_unit = direction  # a normalised direction (kedfem.checks.direction)
 
 
 _number = real  # the finite-number check of materials.py

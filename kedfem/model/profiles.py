@@ -37,6 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..checks import direction
 from ..errors import InputError
 
 __all__ = ["Profile", "PROFILE_QUANTITIES", "STROKES", "MAX_TABLE"]
@@ -97,7 +98,7 @@ class Profile:
             if self.axis is None:
                 raise InputError(f"{what}: a {self.of} table needs the axis along which joint "
                                  f"'{self.joint}' is read")
-            object.__setattr__(self, "axis", _unit(what, self.axis))
+            object.__setattr__(self, "axis", direction(what, "axis", self.axis))
         if self.stroke not in STROKES:
             raise InputError(f"{what}: stroke must be one of {', '.join(STROKES)}, got {self.stroke!r}")
         if not isinstance(self.smooth, (bool, np.bool_)):
@@ -240,13 +241,3 @@ def _table(what, x, y):
     if np.any((d[:-1] == 0) & (d[1:] == 0)):
         raise InputError(f"{what}: an abscissa is given three times (a step needs it twice)")
     return x, y
-
-
-def _unit(what, axis):
-    try:
-        a = np.asarray(axis, dtype=float).ravel()
-    except (TypeError, ValueError):
-        raise InputError(f"{what}: axis must be two numbers, got {axis!r}") from None
-    if a.size != 2 or not np.all(np.isfinite(a)) or np.hypot(*a) == 0.0:
-        raise InputError(f"{what}: axis must be two finite numbers, not both zero, got {axis!r}")
-    return tuple(float(v) for v in a / np.hypot(*a))

@@ -13,12 +13,19 @@ import numpy as np
 from ..model.profiles import Profile
 from .kinematics import Motion
 
-__all__ = ["factor", "quantity", "breaks", "SEARCH_SAMPLES"]
+__all__ = ["factor", "quantity", "breaks", "distinct_instants", "SEARCH_SAMPLES"]
 
 #: Instants of the grid on which crossings are bracketed
 SEARCH_SAMPLES = 2048
 #: Newton steps that refine a bracketed crossing (each halves the bracket when it leaves it)
 REFINE_STEPS = 40
+
+
+def distinct_instants(t, period: float) -> np.ndarray:
+    """Instants [s] (k,) sorted, each once (those within 1e-12 of the period of the one before
+    merged)."""
+    t = np.sort(np.asarray(t, dtype=float))
+    return t[np.concatenate([[True], np.diff(t) > 1e-12 * period])] if t.size else t
 
 
 def quantity(profile: Profile, motion: Motion) -> tuple[np.ndarray, np.ndarray]:

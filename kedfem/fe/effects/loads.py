@@ -16,7 +16,7 @@ import numpy as np
 
 from ...model.mechanism import Load
 from ...motion.kinematics import Motion, slot_direction
-from ...motion.profiles import breaks, factor, quantity
+from ...motion.profiles import breaks, distinct_instants, factor, quantity
 from .base import Chunk, Effect, StateTerms
 
 __all__ = ["Loads", "rigid_friction", "friction_law", "pair_friction", "load_force", "load_breaks", "idle_loads"]
@@ -48,10 +48,7 @@ def load_breaks(mech, cycle, period: float) -> np.ndarray:
     """Instants [s] in ``[0, period)`` where a process load's force kinks or steps (sorted, each
     once): :func:`kedfem.motion.profiles.breaks` of every declared load's profile."""
     found = [breaks(ld.profile, cycle, period) for ld in mech.loads.values() if ld.profile is not None]
-    if not found:
-        return np.zeros(0)
-    t = np.sort(np.concatenate(found))
-    return t[np.concatenate([[True], np.diff(t) > 1e-12 * period])] if t.size else t
+    return distinct_instants(np.concatenate(found), period) if found else np.zeros(0)
 
 
 def load_force(mo: Motion, ld: Load) -> np.ndarray:
