@@ -22,7 +22,8 @@ def load(name):
 
 
 def test_every_example_is_tested():
-    tested = {"linkage", "speed_sweep", "export_render", "press", "shaper"}  # the last two: also test_process_loads
+    tested = {"linkage", "speed_sweep", "export_render", "press", "shaper",  # the two: also test_process_loads
+              "pumping_unit"}  # in test_pinned_beam
     assert {p.stem for p in EXAMPLES.glob("*.py")} == tested
 
 

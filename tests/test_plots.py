@@ -49,10 +49,11 @@ def test_result_plots(res, tmp_path, figures):
     assert [p.name for p in paths] == ["displacement.png", "link_response.png", "frequencies.png", "floquet.png"]
     assert all(is_png(p) for p in paths)
     disp, link, freq, flo = figures
-    assert labels(disp)[0] == ("crank angle [deg]", "elastic displacement [m]")
-    assert labels(link) == [("crank angle [deg]", "mid-span deflection [m]"),
-                            ("crank angle [deg]", "max. normal stress along link [Pa]")]
-    assert labels(freq) == [("crank angle [deg]", "natural frequency [Hz]")]
+    crank = "crank angle [deg] ('crank', absolute)"  # the convention named: a driven link's own angle
+    assert labels(disp)[0] == (crank, "elastic displacement [m]")
+    assert labels(link) == [(crank, "mid-span deflection [m]"),
+                            (crank, "max. normal stress along link [Pa]")]
+    assert labels(freq) == [(crank, "natural frequency [Hz]")]
     assert labels(flo) == [("Re(mu) [-]", "Im(mu) [-]")]
     # the drawn data are the result's
     line = link.axes[0].lines[0]

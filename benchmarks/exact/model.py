@@ -164,6 +164,7 @@ class FlexLink:
     rhoA: float
     nodes: np.ndarray = None  # (n_el + 1, 4) global DOFs (x, y, x', y') of each node
     elements: np.ndarray = None  # indices into the model's element set
+    inner: dict = field(default_factory=dict)  # interior node -> joint pinned there (shares its point)
 
     @property
     def s_nodes(self):
@@ -213,9 +214,16 @@ class Builder:
     def add_mass(self, name, mass):
         self.point_mass[name] += float(mass)
 
-    def flexible(self, name, a, b, n_el, EA, EI, rhoA):
+    def flexible(self, name, a, b, n_el, EA, EI, rhoA, inner=None):
+        """A flexible link of ``n_el`` equal elements; ``inner`` {node: joint}: interior nodes that
+        are joint points (a pin inside the link: the node's position is the joint's)."""
         L = float(np.hypot(*(self.points[b] - self.points[a])))
-        self.links[name] = FlexLink(name, a, b, L, int(n_el), float(EA), float(EI), float(rhoA))
+        self.links[name] = FlexLink(name, a, b, L, int(n_el), float(EA), float(EI), float(rhoA),
+                                    inner=dict(inner or {}))
+
+    def force(self, joint, F):
+        """A constant force [N] on a joint point."""
+        self.cons_spec.append(("force", joint, np.asarray(F, float)))
 
     def body(self, name, mass, J, cm, joints):
         cm = np.asarray(cm, float)
@@ -254,7 +262,8 @@ class Model:
         self.links = {}
         el_L, el_EA, el_EI, el_rhoA, edofs = [], [], [], [], []
         for name, lk0 in b.links.items():
-            lk = FlexLink(lk0.name, lk0.a, lk0.b, lk0.length, lk0.n_el, lk0.EA, lk0.EI, lk0.rhoA)
+            lk = FlexLink(lk0.name, lk0.a, lk0.b, lk0.length, lk0.n_el, lk0.EA, lk0.EI, lk0.rhoA,
+                          inner=dict(lk0.inner))
             nodes = np.zeros((lk.n_el + 1, 4), dtype=int)
             for k in range(lk.n_el + 1):
                 if k == 0:
@@ -263,6 +272,10 @@ class Model:
                     n += 2
                 elif k == lk.n_el:
                     nodes[k, :2] = self.pdofs[lk.b]
+                    nodes[k, 2:] = [n, n + 1]
+                    n += 2
+                elif k in lk.inner:  # a pin inside the link: the joint's point, the link's own slope
+                    nodes[k, :2] = self.pdofs[lk.inner[k]]
                     nodes[k, 2:] = [n, n + 1]
                     n += 2
                 else:
@@ -304,6 +317,8 @@ class Model:
                 cons.append(SlopeDrive(node[2:].copy(), spec[3], spec[4]))
             elif kind == "angle":
                 cons.append(BodyAngle(int(self.bodies[spec[1]].dofs[2]), spec[2]))
+            elif kind == "force":
+                pass  # an external force (below)
         for bd in self.bodies.values():
             for j, d in bd.attach.items():
                 cons.append(BodyPin(self.pdofs[j], bd.dofs, d.copy()))
@@ -334,10 +349,13 @@ class Model:
             for dofs in self.pdofs.values():
                 pattern[dofs] = gv
             for lk in self.links.values():
-                pattern[lk.nodes[1:-1, :2]] = gv
+                pattern[lk.nodes[1:-1, :2]] = gv  # (an inner joint's point: once, as a joint point)
             for bd in self.bodies.values():
                 pattern[bd.dofs[:2]] = gv
             self.f_ext = self.M @ pattern
+        for spec in b.cons_spec:
+            if spec[0] == "force":
+                self.f_ext[self.pdofs[spec[1]]] += spec[2]
         self._jac_pattern()
 
     # ------------------------------------------------------------ constraints
@@ -570,7 +588,9 @@ def from_mechanism(mech, *, elements_per_link=None, beta=0.0, alpha=0.0, gravity
         ``drive`` (member, w, th0 of the driven member's a -> b line, ground
         joint), ``rigid_links`` (names modelled as bodies).
     """
-    unsupported = [n for n in ("springs", "torsional_springs", "loads", "frictions") if getattr(mech, n)]
+    unsupported = [n for n in ("springs", "torsional_springs", "frictions") if getattr(mech, n)]
+    if any(ld.profile is not None for ld in mech.loads.values()):
+        unsupported.append("loads with a profile")
     if unsupported:
         raise NotImplementedError(f"exact model: {', '.join(unsupported)} are not supported")
     if len(mech.drives) != 1:
@@ -580,7 +600,7 @@ def from_mechanism(mech, *, elements_per_link=None, beta=0.0, alpha=0.0, gravity
         raise NotImplementedError("exact model: drive shafts with torsional stiffness are not supported")
     b = Builder()
     for j in mech.joints.values():
-        if j.welded and j.kind != "ground":
+        if j.welded and not j.clamped:
             raise NotImplementedError(f"exact model: welded joint '{j.name}' is not supported")
         b.point(j.name, j.at)
     for pm in mech.point_masses:
@@ -597,8 +617,15 @@ def from_mechanism(mech, *, elements_per_link=None, beta=0.0, alpha=0.0, gravity
             rigid_links.append(lk.name)
             continue
         n_el = lk.elements if elements_per_link is None else int(elements_per_link)
+        inner = {}
+        for t, x in zip(lk.through, lk.through_at):  # a pin inside: it must fall on a node
+            k = int(round(x / lk.length * n_el))
+            if abs(x - k * lk.length / n_el) > 1e-9 * lk.length:
+                raise NotImplementedError(f"exact model: joint '{t}' inside link '{lk.name}' is not at a node "
+                                          f"of {n_el} equal elements")
+            inner[k] = t
         E, rho = lk.material.E, lk.material.rho
-        b.flexible(lk.name, lk.a, lk.b, n_el, E * lk.section.A, E * lk.section.I, rho * lk.section.A)
+        b.flexible(lk.name, lk.a, lk.b, n_el, E * lk.section.A, E * lk.section.I, rho * lk.section.A, inner)
     for bd in mech.bodies.values():
         b.body(bd.name, bd.mass, bd.J, bd.cm, bd.joints)
     for j in mech.joints.values():
@@ -618,12 +645,14 @@ def from_mechanism(mech, *, elements_per_link=None, beta=0.0, alpha=0.0, gravity
             driven = drive.member == lk.name and drive.ground_joint == jn
             if driven:
                 b.slope(lk.name, end, th_ref[lk.name], drive.speed)
-            elif (j.kind == "ground" and j.welded) or clamp:
+            elif j.clamped or clamp:
                 if j.kind != "ground":
                     raise NotImplementedError(f"exact model: clamped end of '{lk.name}' at a moving joint")
                 b.slope(lk.name, end, th_ref[lk.name], 0.0)
     if drive.member in mech.bodies or drive.member in rigid_links:
         b.body_angle(drive.member, drive.speed)
+    for ld in mech.loads.values():  # constant loads on joints
+        b.force(ld.joint, ld.force)
     g = mech.gravity if gravity else None
     model = b.build(beta=beta, alpha=alpha, gravity=g, ngauss=ngauss)
     info = dict(drive=drive.member, w=drive.speed, ground=drive.ground_joint,

@@ -97,13 +97,14 @@ class LinkFatigue:
         """Largest stress range ``max - min`` over stations and fibres [Pa]."""
         return float(2.0 * self.alternating.max())
 
-    def describe(self) -> str:
-        """One line in MPa and mm."""
+    def describe(self, digits: int = 4) -> str:
+        """One line in MPa and mm (``digits``: significant digits of the stresses)."""
         i = int(np.argmin(np.abs(self.stations - self.worst_station)))
         f = 0 if self.worst_fibre == "top" else 1
-        parts = [f"{self.link}: largest range {self.largest_range / 1e6:.4g} MPa at {self.worst_station * 1e3:.1f} mm "
-                 f"({self.worst_fibre} fibre: mean {self.mean[i, f] / 1e6:.4g} MPa, alternating "
-                 f"{self.alternating[i, f] / 1e6:.4g} MPa)"]
+        g = f".{int(digits)}g"
+        parts = [f"{self.link}: largest range {self.largest_range / 1e6:{g}} MPa at {self.worst_station * 1e3:.1f} mm "
+                 f"({self.worst_fibre} fibre: mean {self.mean[i, f] / 1e6:{g}} MPa, alternating "
+                 f"{self.alternating[i, f] / 1e6:{g}} MPa)"]
         for name, v in (("yield", self.safety_yield), ("Goodman", self.safety_goodman),
                         ("Soderberg", self.safety_soderberg)):
             if v is not None:

@@ -234,8 +234,12 @@ class MachineLoads:
         return (self.n >= 3 and math.isfinite(self.period)
                 and bool(np.allclose(np.diff(self.t), self.period / self.n, rtol=1e-9, atol=0.0)))
 
-    def summary(self) -> str:
-        """Peak bearing forces and drive torques, elastic beside rigid, as text lines."""
+    def summary(self, digits: int = 4) -> str:
+        """Peak bearing forces and drive torques, elastic beside rigid, as text lines.
+
+        ``digits``: significant digits of the forces and torques (those the response's error allows).
+        """
+        g = f".{int(digits)}g"
         both = self.elastic is not None
         what = "elastic response; rigid-body kinetostatics in brackets" if both else "rigid-body kinetostatics"
         lines = [f"Loads on the machine ({what}):"]
@@ -245,10 +249,10 @@ class MachineLoads:
             unit = "N" if p.quantity == "bearing_force" else "N m"
             where = (f"bearing {p.joint} ({p.member})" if p.quantity == "bearing_force"
                      else f"drive {p.member} at {p.joint}")
-            text = (f"  {where:<28} peak {p.peak:10.4g} {unit:<3} at {_deg(p.crank_angle):5.1f} deg, "
-                    f"rms {p.rms:.4g} {unit}")
+            text = (f"  {where:<28} peak {p.peak:10{g}} {unit:<3} at {_deg(p.crank_angle):5.1f} deg, "
+                    f"rms {p.rms:{g}} {unit}")
             if r is not None:
-                text += f"  [{r.peak:.4g} {unit} at {_deg(r.crank_angle):.1f} deg, rms {r.rms:.4g}]"
+                text += f"  [{r.peak:{g}} {unit} at {_deg(r.crank_angle):.1f} deg, rms {r.rms:{g}}]"
             lines.append(text)
         if both:
             lines.append(f"  pin balance of the elastic loads: {self.elastic.residual:.1e} of the largest force "
@@ -396,31 +400,38 @@ def _end_forces(result, link) -> dict:
     ``-M(0)``; at end ``b``: ``(N(L), -(M'(L) - N_e v'(L)))`` and ``M(L)``
     (``M = EI v''``, ``M' = dM/dx`` from the element's polynomial moment;
     ``N_e v'`` only where the recovery puts the axial force on the deflection).
+    At a joint the link passes through (``through=``), the sum of the two
+    elements' end forces there.
     """
     name = link.name
     M, N = result._forces(name, _STATIONS)  # (n, n_el, stations), element by element
     d = result._local(name)
-    Le = link.length / link.elements
+    Le = link.element_lengths
     w0, w1 = _slope_weights()
-    slope_a = M[:, 0] @ w0 / Le
-    slope_b = M[:, -1] @ w1 / Le
+    slope_a = M @ w0 / Le  # dM/dx at each element's start and end, (n, n_el)
+    slope_b = M @ w1 / Le
     sl = result.model.link_elements(name)
     b = result.model.beam
     eff = set(getattr(result.scene, "effects", ()))
     loaded = not (b.lumped[sl].any() or b.timoshenko[sl].any()) and result._local_rates(name) is not None
     if loaded and {"axial_stiffening", "geometric_nonlinearity"} & eff:
         Ne = result._axial_fe(name)
-        slope_a = slope_a - Ne[:, 0] * d[:, 0, 2]
-        slope_b = slope_b - Ne[:, -1] * d[:, -1, 5]
-    local_a = np.stack([-N[:, 0, 0], slope_a], axis=-1)
-    local_b = np.stack([N[:, -1, -1], -slope_b], axis=-1)
+        slope_a = slope_a - Ne * d[..., 2]
+        slope_b = slope_b - Ne * d[..., 5]
+    # the pins' forces on the elements' starts and ends (n, n_el, 2), and moments (n, n_el)
+    start = np.stack([-N[:, :, 0], slope_a], axis=-1)
+    end = np.stack([N[:, :, -1], -slope_b], axis=-1)
     th = result.motion.angle(name)
     c, s = np.cos(th)[:, None], np.sin(th)[:, None]
 
     def glob(f):
         return np.concatenate([c * f[:, :1] - s * f[:, 1:], s * f[:, :1] + c * f[:, 1:]], axis=1)
 
-    return {(name, link.a): (glob(local_a), -M[:, 0, 0]), (name, link.b): (glob(local_b), M[:, -1, -1])}
+    out = {(name, link.a): (glob(start[:, 0]), -M[:, 0, 0]), (name, link.b): (glob(end[:, -1]), M[:, -1, -1])}
+    for t in link.through:  # a pin inside: the ends of the two elements meeting at its node
+        i = link.node_of(t)
+        out[(name, t)] = (glob(end[:, i - 1] + start[:, i]), M[:, i - 1, -1] - M[:, i, 0])
+    return out
 
 
 def _accelerations(result, asm, gname: str) -> np.ndarray:
@@ -457,6 +468,12 @@ def _elastic_known(result, asm, skip=frozenset()) -> KnownForces:
             continue
         ends = _end_forces(result, lk)
         drive = mech.driven(lk.name)
+        for t in lk.through:  # a pin inside the link: its force, and its moment where welded
+            force[(lk.name, t)], M = ends[(lk.name, t)]
+            if mech.joints[t].welds(lk.name):
+                moment[(lk.name, t)] = M
+                if mech.joints[t].clamped:
+                    frame_moments.add(t)
         for k, j in enumerate(lk.joints):
             F, M = ends[(lk.name, j)]
             force[(lk.name, j)] = F

@@ -127,8 +127,8 @@ def element_loads(d, dd, ddd, *, L, rhoA, s1, omega, alpha, a_loc, g_loc=None, N
     ----------
     d, dd, ddd : ndarray, shape (n, ne, 6)
         Local element DOFs and their rotating-frame rates [m, rad, /s, /s^2].
-    L : float
-        Element length [m].
+    L : float or ndarray, shape (ne,)
+        Element length(s) [m].
     rhoA : float
         Mass per length [kg/m].
     s1 : ndarray, shape (ne,)
@@ -150,10 +150,18 @@ def element_loads(d, dd, ddd, *, L, rhoA, s1, omega, alpha, a_loc, g_loc=None, N
     q, p : ndarray, shape (n, ne, 4)
         Transverse and axial loads per length [N/m].
     """
-    Nf = el.shape_functions(L, LOAD_POINTS)[0]  # (4, 2, 6)
-    u = np.einsum("pij,tej->tepi", Nf, d)
-    ud = np.einsum("pij,tej->tepi", Nf, dd)
-    udd = np.einsum("pij,tej->tepi", Nf, ddd)
+    if np.ndim(L) == 0:  # one element length
+        Nf = el.shape_functions(L, LOAD_POINTS)[0]  # (4, 2, 6)
+        u = np.einsum("pij,tej->tepi", Nf, d)
+        ud = np.einsum("pij,tej->tepi", Nf, dd)
+        udd = np.einsum("pij,tej->tepi", Nf, ddd)
+        Lx = L
+    else:  # an element length each
+        Nf = el.shape_functions(L, LOAD_POINTS)  # (ne, 4, 2, 6)
+        u = np.einsum("epij,tej->tepi", Nf, d)
+        ud = np.einsum("epij,tej->tepi", Nf, dd)
+        udd = np.einsum("epij,tej->tepi", Nf, ddd)
+        Lx = np.asarray(L, float)[:, None]
     q = -rhoA * udd[..., 1]
     p = -rhoA * udd[..., 0]
     w = omega[:, None, None]
@@ -162,15 +170,19 @@ def element_loads(d, dd, ddd, *, L, rhoA, s1, omega, alpha, a_loc, g_loc=None, N
         q = q - rhoA * (2.0 * w * ud[..., 0] + a * u[..., 0] - w * w * u[..., 1])
         p = p - rhoA * (-2.0 * w * ud[..., 1] - a * u[..., 1] - w * w * u[..., 0])
     if inertia:
-        x = (s1[:, None] + LOAD_POINTS[None, :] * L)[None]  # (1, ne, 4)
+        x = (s1[:, None] + LOAD_POINTS[None, :] * Lx)[None]  # (1, ne, 4)
         q = q - rhoA * (a_loc[:, None, None, 1] + a * x)
         p = p - rhoA * (a_loc[:, None, None, 0] - w * w * x)
     if g_loc is not None:
         q = q + rhoA * g_loc[:, None, None, 1]
         p = p + rhoA * g_loc[:, None, None, 0]
     if N is not None:
-        B = el.shape_curvatures(L, LOAD_POINTS)[0]  # (4, 6)
-        q = q + N[..., None] * np.einsum("pi,tei->tep", B, d)
+        if np.ndim(L) == 0:
+            B = el.shape_curvatures(L, LOAD_POINTS)[0]  # (4, 6)
+            q = q + N[..., None] * np.einsum("pi,tei->tep", B, d)
+        else:
+            B = el.shape_curvatures(L, LOAD_POINTS)  # (ne, 4, 6)
+            q = q + N[..., None] * np.einsum("epi,tei->tep", B, d)
     return q, p
 
 
@@ -184,8 +196,10 @@ def section_forces(d, q, p, *, L, EA, EI, xi, N_h=None):
     q, p : ndarray, shape (n, ne, 4) or None
         Distributed loads at :data:`LOAD_POINTS` (:func:`element_loads`);
         None keeps the interpolated forces.
-    L, EA, EI : float
-        Element length [m], axial [N] and bending [N m^2] rigidity.
+    L : float or ndarray, shape (ne,)
+        Element length(s) [m].
+    EA, EI : float
+        Axial [N] and bending [N m^2] rigidity.
     xi : array_like, shape (nx,)
         Fractions of each element where the forces are wanted.
     N_h : ndarray, shape (n, ne), optional
@@ -196,13 +210,20 @@ def section_forces(d, q, p, *, L, EA, EI, xi, N_h=None):
     M, N : ndarray, shape (n, ne, nx)
         ``EI v''`` [N m] and tension [N].
     """
-    B = el.shape_curvatures(L, xi)[0]  # (nx, 6)
-    M = EI * np.einsum("xi,tei->tex", B, d)
+    if np.ndim(L) == 0:  # one element length
+        B = el.shape_curvatures(L, xi)[0]  # (nx, 6)
+        M = EI * np.einsum("xi,tei->tex", B, d)
+        Lx = L
+    else:  # an element length each
+        B = el.shape_curvatures(L, xi)  # (ne, nx, 6)
+        M = EI * np.einsum("exi,tei->tex", B, d)
+        L = np.asarray(L, float)
+        Lx = L[:, None]
     if N_h is None:
         N_h = EA * (d[..., 3] - d[..., 0]) / L
     N = np.broadcast_to(N_h[..., None], M.shape).copy()
     if q is not None:
         W, Wn = fixed_end_maps(xi)
-        M = M + L * L * np.einsum("xp,tep->tex", W, q)
-        N = N + L * np.einsum("xp,tep->tex", Wn, p)
+        M = M + Lx * Lx * np.einsum("xp,tep->tex", W, q)
+        N = N + Lx * np.einsum("xp,tep->tex", Wn, p)
     return M, N

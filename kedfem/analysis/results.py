@@ -203,8 +203,13 @@ def _per_element(k) -> int:
     return int(k)
 
 
-def _on_stations(X: np.ndarray) -> np.ndarray:
-    """Element values (n, n_el, k + 1) on the link's stations (n, n_el k + 1), nodes averaged."""
+def _on_stations(X: np.ndarray, steps=(), larger: bool = False) -> np.ndarray:
+    """Element values (n, n_el, k + 1) on the link's stations (n, n_el k + 1), nodes averaged.
+
+    At the nodes ``steps`` (joints the link passes through, where a pin's force
+    steps the section forces) ``larger=True`` takes the larger of the two sides
+    (a stress) instead of their mean.
+    """
     n, ne, k1 = X.shape
     k = k1 - 1
     out = np.empty((n, ne * k + 1))
@@ -212,7 +217,22 @@ def _on_stations(X: np.ndarray) -> np.ndarray:
     out[:, -1] = X[:, -1, k]
     if ne > 1:
         out[:, k:-1:k] = 0.5 * (X[:, :-1, k] + X[:, 1:, 0])
+    if larger:
+        for i in steps:
+            out[:, i * k] = np.maximum(X[:, i - 1, k], X[:, i, 0])
     return out
+
+
+def _element_length(lk):
+    """Element length [m] of a link meshed uniformly (float), else the lengths (n_el,)."""
+    return lk.length / lk.elements if not lk.through else lk.element_lengths
+
+
+def _abscissa(lk, station: float, per_element: int) -> float:
+    """Abscissa [m] from joint ``a`` of a (fractional) station index on ``per_element`` stations per element."""
+    x = np.clip(station / per_element, 0.0, lk.elements)
+    e = min(int(x), lk.elements - 1)
+    return float(min(max(lk.nodes[e] + (x - e) * lk.element_lengths[e], 0.0), lk.length))
 
 
 def _vertex(y: np.ndarray, k: int, periodic: bool = False) -> tuple[float, float]:
@@ -273,8 +293,7 @@ class LinkPeaks:
     deflection : float
         Largest ``|mid-span deflection relative to the chord|`` over the cycle [m].
     deflection_angle : float
-        Crank angle of that peak [rad], absolute (as :attr:`PeriodicResult.crank_angle`),
-        in ``[0, 2 pi)``.
+        Crank angle of that peak [rad] (as :attr:`PeriodicResult.crank_angle`), in ``[0, 2 pi)``.
     stress : float
         Largest ``|N|/A + |M| c/I`` over the link and the cycle [Pa] (nan without ``c``).
     stress_angle : float
@@ -300,7 +319,9 @@ class PeriodicResult:
     t : ndarray, shape (n,)
         Time nodes [s].
     crank_angle : ndarray, shape (n,)
-        Angle of the first driven member [rad].
+        Angle of the first driven member [rad]: a driven link's absolute angle (its
+        ``a -> b`` line from +x), a driven body's rotation from the drawing
+        (:func:`kedfem.motion.crank.crank_angle_convention` says which in words).
     U, V : ndarray, shape (n, n_dof)
         Elastic displacements [m, rad] and velocities at the time nodes.
     dof_labels : tuple of str
@@ -453,7 +474,11 @@ class PeriodicResult:
         """
         lk = self._link(link)
         k = _per_element(per_element)
-        return np.linspace(0.0, lk.length, lk.elements * k + 1)
+        if not lk.through:
+            return np.linspace(0.0, lk.length, lk.elements * k + 1)
+        frac = np.arange(k) / k
+        x = (lk.nodes[:-1, None] + frac[None, :] * lk.element_lengths[:, None]).ravel()
+        return np.append(x, lk.length)
 
     def _link(self, link):
         mech = self.model.mech
@@ -491,9 +516,14 @@ class PeriodicResult:
         choice("deflection", "relative_to", relative_to, ("frame", "chord"))
         d = self._local(link)
         ne = lk.elements
-        e = min(int(xi * ne), ne - 1)
-        xe = xi * ne - e
-        Le = lk.length / ne
+        if lk.through:
+            e = int(min(max(np.searchsorted(lk.nodes, xi * lk.length, side="right") - 1, 0), ne - 1))
+            Le = float(lk.element_lengths[e])
+            xe = (xi * lk.length - lk.nodes[e]) / Le
+        else:
+            e = min(int(xi * ne), ne - 1)
+            xe = xi * ne - e
+            Le = lk.length / ne
         N = el.shape_functions(Le, [xe])[0, 0]  # (2, 6)
         v = d[:, e] @ N[1]
         if relative_to == "chord":
@@ -507,13 +537,17 @@ class PeriodicResult:
         """Interpolated axial force per element (n, n_el) [N] (plus the membrane term)."""
         lk = self._link(link)
         d = self._local(link)
-        Le = lk.length / lk.elements
+        Le = _element_length(lk)
         EA = lk.material.E * lk.section.A
         N = EA * (d[..., 3] - d[..., 0]) / Le
         if "geometric_nonlinearity" in getattr(self.scene, "effects", ()):
-            G = el.geometric_matrix([Le])[0]
             vb = d[..., el.V_DOFS]
-            N = N + EA / (2 * Le) * np.einsum("...i,ij,...j->...", vb, G, vb)
+            if np.ndim(Le) == 0:
+                G = el.geometric_matrix([Le])[0]
+                N = N + EA / (2 * Le) * np.einsum("...i,ij,...j->...", vb, G, vb)
+            else:
+                G = el.geometric_matrix(Le)
+                N = N + EA / (2 * Le) * np.einsum("...ei,eij,...ej->...e", vb, G, vb)
         return N
 
     def _local_rates(self, link: str):
@@ -587,7 +621,7 @@ class PeriodicResult:
         if key in self._cache:
             return self._cache[key]
         d = self._local(link)
-        Le = lk.length / lk.elements
+        Le = _element_length(lk)
         xi = np.asarray(xi, float)
         q, p, N_h = self._element_loads(lk)
         out = recovery.section_forces(d, q, p, L=Le, EA=lk.material.E * lk.section.A,
@@ -612,7 +646,7 @@ class PeriodicResult:
         link = lk.name
         d = self._local(link)
         ne = lk.elements
-        Le = lk.length / ne
+        Le = _element_length(lk)
         N_h = self._axial_fe(link)
         q = p = None
         sl = self.model.link_elements(link)
@@ -632,7 +666,7 @@ class PeriodicResult:
                 g = local(np.broadcast_to(np.asarray(self.model.mech.gravity, float), (self.n, 2)))
             stiff = bool({"axial_stiffening", "geometric_nonlinearity"} & eff)
             q, p = recovery.element_loads(
-                d, rates[0], rates[1], L=Le, rhoA=float(b.rhoA[sl][0]), s1=np.arange(ne) * Le,
+                d, rates[0], rates[1], L=Le, rhoA=float(b.rhoA[sl][0]), s1=np.arange(ne) * Le if np.ndim(Le) == 0 else lk.nodes[:-1],
                 omega=mo.angular_velocity(link), alpha=mo.angular_acceleration(link),
                 a_loc=local(mo.a[:, mo.joint_names.index(lk.a)]), g_loc=g, N=N_h if stiff else None,
                 inertia="inertia" in eff, coupling="coupling" in eff)
@@ -799,7 +833,8 @@ class PeriodicResult:
             raise InputError(f"link '{link}': its section has no extreme-fibre distance c, "
                              "so the bending stress is unknown (give Section(..., c=...))")
         M, N = self._forces(lk.name, _per_element(per_element))
-        return _on_stations(np.abs(N) / sec.A + np.abs(M) * sec.c / sec.I)
+        return _on_stations(np.abs(N) / sec.A + np.abs(M) * sec.c / sec.I,
+                            [lk.node_of(t) for t in lk.through], larger=True)
 
     def link_geometry(self, link: str) -> np.ndarray:
         """Rigid-body positions (n, n_el + 1, 2) [m] of a flexible link's nodes over the cycle."""
@@ -899,8 +934,7 @@ class PeriodicResult:
             ang = self._angle_of
             if sv:
                 smax, st, sj = sv[0]
-                h = lk.length / (lk.elements * PEAK_STATIONS)
-                sst = float(min(max(sj * h, 0.0), lk.length))
+                sst = _abscissa(lk, sj, PEAK_STATIONS)
                 if bv and bv[0][0] > smax:  # the peak is under a block: there, at its instant
                     smax, st = bv[0][0], bv[0][1]
                     sst = float(self._block_abscissa_at(lk, st))
@@ -929,6 +963,8 @@ class PeriodicResult:
             vals = one.stress(lk.name, per_element=PEAK_STATIONS * sub)[r]
             j = int(np.argmax(vals))
             v, dj = _vertex(vals, j)
+            if j in [lk.node_of(t) * PEAK_STATIONS * sub for t in lk.through]:
+                v, dj = float(vals[j]), 0.0  # the stress steps at a pin the link passes: no parabola
             # an evaluation at the instant's vertex (the vertices in time and along the link
             # added together over-shoot a peak on a ridge that is not along the axes)
             station = (j + dj) / sub

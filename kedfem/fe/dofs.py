@@ -114,7 +114,7 @@ class DofNumbering:
 
     def _member_joints(self, name):
         mech = self.mech
-        return mech.links[name].joints if name in mech.links else mech.bodies[name].joints
+        return mech.links[name].attached if name in mech.links else mech.bodies[name].joints
 
     def _com_loc(self, name):
         mech = self.mech
@@ -139,7 +139,7 @@ class DofNumbering:
             return x
 
         for j in mech.joints.values():
-            if j.welded and j.kind != "ground":
+            if j.welded and not j.clamped:
                 here = [m for m in mech.members_at(j.name) if m in parent and j.welds(m)]
                 for m in here[1:]:
                     parent[find(m)] = find(here[0])
@@ -209,7 +209,7 @@ class DofNumbering:
                                  "least one link of the loop flexible")
             ref_pt = self._add_point(PointDof("fixed", g, loc=("joint", g)))
             self._rigid_joint_points[g] = ref_pt
-            if mech.joints[g].welded:
+            if mech.joints[g].clamped:
                 phi = -1
             elif drive is not None:
                 if drive.torsional_stiffness is not None:
@@ -275,7 +275,10 @@ class DofNumbering:
         raise InputError(
             f"rigid member(s) '{name}' on slider '{j}': {why}, so the slider's constraint would act "
             "on the deflection of other members, which kedfem does not eliminate; make one of these links "
-            "flexible (a stiff flexible link models a rigid one)")
+            "flexible with its real section: its deflection is then part of the answer (the summary lists "
+            "it among the flexible members; a Whitworth's crank, flexible or rigid, changes the ram's elastic "
+            "displacement by about 10 %); a section far stiffer than the real one approaches a rigid member, at the "
+            "cost of stiffer modes to resolve")
 
     def _slider_point(self, jn: str) -> int:
         """The translation entity of a slider joint: along its line (fixed or on a member)."""
@@ -353,13 +356,14 @@ class DofNumbering:
             return self._add_rot(RotDof("slot", label, (), lk.name, slot=joint))
         if jt.kind == "slider" and jt.rotation == "locked":  # a crosshead
             return self._add_rot(RotDof("fixed", label, (), lk.name, None, offset=True))
-        clamped = lk.ends[k] == "clamp" or jt.welds(lk.name)
+        clamped = (k is not None and lk.ends[k] == "clamp") or jt.welds(lk.name)
         if not clamped:
             q = self._new_q(label)
             return self._add_rot(RotDof("free", label, (q,), lk.name))
-        if jt.kind == "ground":
+        welds = jt.welds(lk.name)  # else an end clamped to what the joint connects to
+        if jt.kind == "ground" and (jt.clamped or not welds):  # (not welded to members pinned there)
             return self._add_rot(RotDof("fixed", label, (), lk.name, None, offset=True))
-        rigid_here = [m for m in mech.members_at(joint) if m in self.member_rot]
+        rigid_here = [m for m in mech.members_at(joint) if m in self.member_rot and (jt.welds(m) or not welds)]
         if rigid_here:
             groups = {self.member_rot[m] for m in rigid_here}
             if len(groups) > 1:
@@ -390,6 +394,8 @@ class DofNumbering:
             names.append(lk.name)
             ne = lk.elements
             le = lk.length / ne
+            lengths, nodes = lk.element_lengths, lk.nodes
+            inner = {lk.node_of(t): t for t in lk.through}  # mesh nodes at joints passed through
             mat, sec = lk.material, lk.section
             first[lk.name] = len(rows["L"])
             count[lk.name] = ne
@@ -410,6 +416,13 @@ class DofNumbering:
                        "bounds": None, "pts": [], "rots": []}
                 self.blocks.append(blk)
             for i in range(1, ne):
+                if i in inner:
+                    t = inner[i]
+                    rt = self._end_rotation(lk, t, None, clamp_groups)
+                    self.end_rot[(lk.name, t)] = rt
+                    node_pts.append(self.joint_point[t])
+                    node_rots.append(rt)
+                    continue
                 if reduced:
                     node_pts.append(self._add_point(PointDof(
                         "cb", f"{lk.name}.n{i}", (), loc=("member", lk.name, lk.a, i * le * e1),
@@ -427,7 +440,7 @@ class DofNumbering:
                     kind = "free"
                 qt = self._new_q(f"{lk.name}.n{i}.theta")
                 node_pts.append(self._add_point(PointDof(kind, f"{lk.name}.n{i}", (qx, qy),
-                                                         loc=("member", lk.name, lk.a, i * le * e1))))
+                                                         loc=("member", lk.name, lk.a, nodes[i] * e1))))
                 node_rots.append(self._add_rot(RotDof("free", f"{lk.name}.n{i}.theta", (qt,), lk.name)))
             rb = self._end_rotation(lk, lk.b, 1, clamp_groups)
             self.end_rot[(lk.name, lk.b)] = rb
@@ -440,12 +453,12 @@ class DofNumbering:
             for i in range(ne):
                 ids.append((node_pts[i], node_rots[i], node_pts[i + 1], node_rots[i + 1]))
                 rows["link"].append(li)
-                rows["L"].append(le)
+                rows["L"].append(lengths[i])
                 rows["EA"].append(mat.E * sec.A)
                 rows["EI"].append(mat.E * sec.I)
                 rows["rhoA"].append(mat.rho * sec.A)
                 rows["GAs"].append(sec.kappa * mat.G * sec.A)
-                rows["s1"].append(i * le)
+                rows["s1"].append(nodes[i])
                 rows["lumped"].append(lk.mass_matrix == "lumped")
                 rows["timo"].append(lk.timoshenko)
         arr = {k: np.asarray(v, dtype=float) for k, v in rows.items()}

@@ -38,7 +38,8 @@ class CraigBampton:
         Fixed-interface normal modes kept per reduced link (>= 0).
     links : tuple of str, optional
         Links to reduce; default every flexible link with more than one
-        element (single-element links have no interior to reduce).
+        element (single-element links have no interior to reduce) and no
+        joints passed through (``through=``: those stay unreduced).
     static_correction : bool
         Also keep the static interior responses (boundary fixed) to the four
         load patterns of the rigid-body inertia and weight loads in the link
@@ -65,6 +66,12 @@ class CraigBampton:
     def applies_to(self, link) -> bool:
         """True if ``link`` (a :class:`kedfem.model.mechanism.Link`) is reduced."""
         if link.rigid or link.elements < 2:
+            return False
+        if link.through:  # its interface includes inner nodes: not reduced
+            if self.links is not None and link.name in self.links:
+                raise InputError(f"CraigBampton: link '{link.name}' passes through joint(s) "
+                                 f"{', '.join(link.through)}; its reduction (interface at the two ends) "
+                                 "does not apply: leave it out of links=")
             return False
         return self.links is None or link.name in self.links
 

@@ -284,7 +284,7 @@ _ANCHOR_FRACTION = 0.08
 
 def _joint_symbol(joint) -> int:
     if joint.kind == "ground":
-        return SYMBOLS["clamped ground" if joint.welded else "ground"]
+        return SYMBOLS["clamped ground" if joint.clamped else "ground"]
     if joint.kind == "slider":
         return SYMBOLS["slider"]
     return SYMBOLS["welded joint" if joint.welded else "revolute joint"]

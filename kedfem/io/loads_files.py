@@ -57,7 +57,7 @@ def _scale(peak: float, unit: str) -> tuple[float, str]:
     return (1e3, "k" + unit) if peak >= 1e3 else (1.0, unit)
 
 
-def plot_loads(loads: MachineLoads, path, *, bearings=None) -> Path:
+def plot_loads(loads: MachineLoads, path, *, bearings=None, angle_label: str = "crank angle [deg]") -> Path:
     """Plot bearing force magnitudes and drive torques over the crank angle (PNG, atomically).
 
     One axis for the forces, one for the torques; elastic solid, rigid
@@ -108,7 +108,7 @@ def plot_loads(loads: MachineLoads, path, *, bearings=None) -> Path:
     ax_f.set_ylabel(f"bearing force magnitude [{fu}]")
     ax_f.set_title(f"{loads.mechanism}: force of each pin on the body it holds")
     ax_t.set_ylabel(f"drive torque [{tu}]")
-    ax_t.set_xlabel("crank angle [deg]")
+    ax_t.set_xlabel(angle_label)
     ax_t.axhline(0.0, color="0.6", lw=0.6)
     for ax in (ax_f, ax_t):
         ax.set_xlim(0.0, 360.0)

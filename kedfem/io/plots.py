@@ -27,6 +27,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..errors import InputError
+from ..motion.crank import crank_angle_label
 from .export import atomic_path, dof_unit, require
 
 __all__ = ["displacement", "link_response", "frequencies", "floquet", "sweep_peaks", "accuracy_vs_cost",
@@ -58,8 +59,8 @@ def _deg(a):
     return np.degrees(np.asarray(a, float))
 
 
-def _angle_axis(ax):
-    ax.set_xlabel("crank angle [deg]")
+def _angle_axis(ax, mech=None):
+    ax.set_xlabel(crank_angle_label(mech))
     ax.set_xlim(0, 360)
     ax.set_xticks(np.arange(0, 361, 60))
     ax.grid(True, alpha=0.3)
@@ -123,7 +124,7 @@ def displacement(res, path, dofs: Sequence[str] | None = None) -> Path:
             ax.plot(x, _closed(res.dof(d), order), label=d)
         ax.set_ylabel(f"elastic {'displacement' if unit == 'm' else 'rotation'} [{unit}]")
         ax.legend(fontsize="small", loc="best")
-        _angle_axis(ax)
+        _angle_axis(ax, res.model.mech)
     axes[0, 0].set_title(f"{_title(res)}: elastic displacements")
     return _save(fig, path)
 
@@ -162,17 +163,23 @@ def link_response(res, path, links: Sequence[str] | None = None) -> Path:
         axes[1, 0].text(0.5, 0.5, "no section with an extreme-fibre distance c", ha="center",
                         transform=axes[1, 0].transAxes)
     for ax in axes[:, 0]:
-        _angle_axis(ax)
+        _angle_axis(ax, res.model.mech)
     return _save(fig, path)
 
 
-def frequencies(freqs, path, title: str = "") -> Path:
+def frequencies(freqs, path, title: str = "", mech=None) -> Path:
     """Natural frequencies vs crank angle: modal (solid) and state-space (dashed).
 
     Parameters
     ----------
     freqs : Frequencies
         From :meth:`PeriodicResult.frequencies`.
+    path : str or Path
+        PNG file.
+    title : str
+        Title prefix.
+    mech : Mechanism, optional
+        Names the crank angle's convention on the axis.
     """
     fig, axes = _figure()
     ax = axes[0, 0]
@@ -184,7 +191,7 @@ def frequencies(freqs, path, title: str = "") -> Path:
     ax.set_ylabel("natural frequency [Hz]")
     ax.set_title(f"{title + ': ' if title else ''}natural frequencies over the cycle")
     ax.legend(fontsize="x-small", ncol=2)
-    _angle_axis(ax)
+    _angle_axis(ax, mech)
     return _save(fig, path)
 
 
@@ -216,7 +223,7 @@ def all_plots(res, out_dir, freqs=None, dofs: Sequence[str] | None = None) -> li
     if res.model.mech.flexible_links:
         paths.append(link_response(res, out / "link_response.png"))
     if freqs is not None:
-        paths.append(frequencies(freqs, out / "frequencies.png", _title(res)))
+        paths.append(frequencies(freqs, out / "frequencies.png", _title(res), res.model.mech))
     paths.append(floquet(res, out / "floquet.png"))
     return paths
 

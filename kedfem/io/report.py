@@ -19,7 +19,9 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
+from .digits import UNKNOWN_DIGITS, significant_digits
 from ..errors import InputError
+from ..motion.crank import crank_angle_convention, crank_angle_label
 from .fatigue_files import write_fatigue_csv, write_histories
 from .loads_files import plot_loads, write_loads_csv
 from .outdir import MANIFEST, RunFolder, check_replaceable
@@ -54,16 +56,21 @@ def _angle(a: float) -> str:
     return f"{math.degrees(a) % 360:7.1f}" if math.isfinite(a) else "      -"
 
 
-def crank_angle_convention(mech) -> str:
-    """What the crank angles of a mechanism's results are, in words: a driven link's absolute
-    angle (its ``a -> b`` line from +x), or a driven body's rotation from the drawing."""
-    if not mech.drives:
-        return "none (no drive)"
-    d = mech.drives[0]
-    if d.member in mech.links:
-        lk = mech.links[d.member]
-        return f"of the crank '{d.member}', absolute (its {lk.a} -> {lk.b} line from +x, counter-clockwise)"
-    return f"of the crank '{d.member}', its rotation from the drawing (counter-clockwise)"
+def _larger(*errors):
+    """The largest of the known errors (None when none is known)."""
+    known = [e for e in errors if e is not None and math.isfinite(e)]
+    return max(known) if known else None
+
+
+def members_text(mech) -> str:
+    """Which members are flexible (with their elements) and which rigid: a rigid and a stiff flexible
+    member answer differently (a Whitworth's ram, 10 % in its elastic displacement)."""
+    flex = [f"{lk.name} {lk.elements} el." for lk in mech.flexible_links]
+    rigid = [n for n, lk in mech.links.items() if lk.rigid] + list(mech.bodies)
+    parts = [f"flexible {', '.join(flex)}" if flex else "none flexible"]
+    if rigid:
+        parts.append(f"rigid {', '.join(rigid)}")
+    return "; ".join(parts)
 
 
 def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_dir: Path | None,
@@ -75,8 +82,7 @@ def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_di
     info = scene_summary(sc)
     L = []
     L.append(f"kedfem {__version__}: {sc.name or sc.mech.name}  [{source}]")
-    L.append(f"  mechanism   {info['mechanism']}: {len(sc.mech.links)} links, "
-             f"{len(sc.mech.flexible_links)} flexible, {res.model.n_dof} elastic DOFs")
+    L.append(f"  mechanism   {info['mechanism']}: {members_text(sc.mech)}, {res.model.n_dof} elastic DOFs")
     L.append(f"  speed       {info['speed']}")
     how = (f"tolerance {sc.rtol:g} on the peaks" if sc.steps is None else "steps given")
     L.append(f"  solver      {res.scheme}, {res.elements} time elements ({how}), "
@@ -110,13 +116,17 @@ def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_di
 
         for p in peaks:
             e = err.link(p.link) if err is not None else None
-            st = f"{p.stress / 1e6:12.5g}" if math.isfinite(p.stress) else f"{'n/a (no c)':>12s}"
+            me = next((x for x in mesh.links if x.link == p.link), None) if mesh is not None else None
+            nd = significant_digits(_larger(e and e.deflection, me and me.deflection))  # digits its error allows
+            ns = significant_digits(_larger(e and e.stress, me and me.stress))
+            st = f"{p.stress / 1e6:12.{ns}g}" if math.isfinite(p.stress) else f"{'n/a (no c)':>12s}"
             ss = f"{p.stress_station * 1e3:12.2f}" if math.isfinite(p.stress_station) else f"{'-':>12s}"
             de = pm(e.deflection) if e else pm(None)
             se = pm(e.stress) if (e and math.isfinite(p.stress)) else pm(None)
-            L.append(f"  {p.link:<16s} {p.deflection * 1e3:15.5g} {de} {_angle(p.deflection_angle):>8s} {st} "
+            L.append(f"  {p.link:<16s} {p.deflection * 1e3:15.{nd}g} {de} {_angle(p.deflection_angle):>8s} {st} "
                      f"{se} {_angle(p.stress_angle):>8s} {ss}")
-        L.append("  (deflection: mid-span, relative to the chord; stress: max |N|/A + |M| c/I;")
+        L.append("  (deflection: mid-span, relative to the chord; stress: max |N|/A + |M| c/I; digits: down to a")
+        L.append(f"   tenth of the error, {UNKNOWN_DIGITS} where it is not estimated;")
         L.append(f"   angles: {crank_angle_convention(res.model.mech)}; +-: estimated relative error of the peak)")
         if err is not None:
             L.append(f"  time-discretisation error: {err.describe()}")
@@ -134,14 +144,15 @@ def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_di
             L.append(f"  mesh error: not estimated ({mesh_note or 'no mesh check here: kf.mesh_error(res) makes one'})")
     else:
         L.append("peak response: no flexible links")
+    history = significant_digits(err.history if err is not None else None, 4)  # loads and fatigue ride on it
     if loads is not None:
         L.append("")
-        L.extend(loads.summary().splitlines())
+        L.extend(loads.summary(digits=history).splitlines())
     if fatigue is not None and fatigue.links:
         L.append("")
         L.append("fatigue (signed fibre stress N/A -+ M c/I over the cycle; fatigue.csv per station)")
         for lf in fatigue.links:
-            L.append(f"  {lf.describe()}")
+            L.append(f"  {lf.describe(digits=history)}")
     L.append("")
     mu = np.abs(np.asarray(res.floquet_multipliers))
     rho = float(mu.max()) if mu.size else float("nan")
@@ -204,7 +215,7 @@ def write_outputs(res, freqs, peaks, out_dir: Path, stage: Stages, *, plots: boo
         with stage("plots"):
             files.extend(pl.all_plots(res, out_dir, freqs, dofs or None))
             if loads is not None:
-                files.append(plot_loads(loads, out_dir / "loads.png"))
+                files.append(plot_loads(loads, out_dir / "loads.png", angle_label=crank_angle_label(res.model.mech)))
     series = None
     if vtk or render:
         with stage("vtk"):

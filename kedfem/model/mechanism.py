@@ -71,6 +71,18 @@ def _short(v) -> str:
     return r if len(r) <= 60 else r[:57] + "..."
 
 
+def _welded_group(owner: str, welded) -> tuple[str, ...]:
+    """Two or more different member names welded to each other at a joint."""
+    if isinstance(welded, str) or not isinstance(welded, (tuple, list)) or \
+            not all(isinstance(x, str) for x in welded):
+        raise InputError(f"{owner}: welded must be True/False or a sequence of member names, got {welded!r}")
+    welded = tuple(welded)
+    if len(welded) < 2 or len(set(welded)) != len(welded):
+        raise InputError(f"{owner}: welded names the members welded to each other: two or more "
+                         f"different ones, got {welded!r}")
+    return welded
+
+
 _unit = direction  # a normalised direction (kedfem.checks.direction)
 
 
@@ -106,6 +118,11 @@ class Joint:
         """True for joints whose translation is fixed to the frame."""
         return self.kind == "ground"
 
+    @property
+    def clamped(self) -> bool:
+        """True for a ground joint that welds every member to the frame (``clamped=True``)."""
+        return self.kind == "ground" and self.welded is True
+
     def welds(self, member: str) -> bool:
         """True if ``member`` is rigidly connected here (``welded=True``, or named in ``welded``)."""
         return self.welded is True or (isinstance(self.welded, tuple) and member in self.welded)
@@ -136,10 +153,71 @@ class Link:
     timoshenko: bool
     length: float
     kinematic: bool = True
+    through: tuple[str, ...] = ()
+    through_at: tuple[float, ...] = ()
 
     @property
     def joints(self) -> tuple[str, str]:
+        """The link's end joints ``(a, b)``."""
         return (self.a, self.b)
+
+    @property
+    def attached(self) -> tuple[str, ...]:
+        """Every joint of the link: its ends, then the joints it passes through (``through=``)."""
+        return (self.a, self.b) + self.through
+
+    def segments(self) -> tuple[tuple[int, int, float], ...]:
+        """The mesh's uniform stretches between the ends and the joints passed through.
+
+        Returns
+        -------
+        tuple of (first, count, Le)
+            First element, number of elements and element length [m] of each
+            stretch, from ``a`` to ``b``. Without ``through=`` joints, one
+            stretch of ``elements`` elements of ``length / elements``. The
+            elements go to the stretches in proportion to their lengths
+            (largest remainders, at least one each).
+        """
+        if not self.elements:
+            return ()
+        cuts = (0.0,) + self.through_at + (self.length,)
+        lens = np.diff(cuts)
+        if not self.through:
+            return ((0, self.elements, self.length / self.elements),)
+        share = self.elements * lens / self.length
+        n = np.maximum(np.floor(share).astype(int), 1)
+        while n.sum() < self.elements:
+            n[int(np.argmax(share - n))] += 1
+        out, first = [], 0
+        for k in range(lens.size):
+            out.append((first, int(n[k]), float(lens[k] / n[k])))
+            first += int(n[k])
+        return tuple(out)
+
+    @property
+    def element_lengths(self) -> np.ndarray:
+        """Lengths (elements,) of the link's frame elements [m]."""
+        return np.concatenate([np.full(c, le) for _f, c, le in self.segments()]) if self.elements \
+            else np.zeros(0)
+
+    @property
+    def nodes(self) -> np.ndarray:
+        """Abscissae (elements + 1,) of the mesh's nodes from joint ``a`` [m]."""
+        out, s0 = [], 0.0
+        for k, (_f, c, le) in enumerate(self.segments()):
+            s0 = 0.0 if k == 0 else self.through_at[k - 1]
+            out.append(s0 + np.arange(c) * le)
+        return np.concatenate(out + [[self.length]]) if self.elements else np.zeros(0)
+
+    def node_of(self, joint: str) -> int:
+        """The mesh node (0 .. elements) at ``joint``, an end or a joint passed through."""
+        if joint == self.a:
+            return 0
+        if joint == self.b:
+            return self.elements
+        k = self.through.index(joint)
+        f, _c, _le = self.segments()[k + 1]
+        return f
 
 
 @dataclass(frozen=True)
@@ -302,7 +380,7 @@ class Mechanism:
         self.graph.add_node(joint.name, joint=joint)
         return joint
 
-    def ground(self, name: str, at, clamped: bool = False) -> Joint:
+    def ground(self, name: str, at, clamped: bool = False, welded=None) -> Joint:
         """Add a revolute joint to the frame (``clamped=True`` welds it).
 
         Parameters
@@ -313,10 +391,22 @@ class Mechanism:
             Position in the reference configuration [m].
         clamped : bool
             Weld the members meeting here to the frame (a cantilever root).
+        welded : sequence of str, optional
+            Two or more members welded to each other here and pinned to the
+            frame together (the two arms of a walking beam on its saddle
+            bearing); the other members at the joint stay pinned. For a
+            member that passes the frame's pin, ``link(..., through=)`` does
+            the same without splitting it.
         """
         owner = f"ground '{name}'"
-        return self._new_joint(Joint(name, _vec2(owner, "at", at), "ground",
-                                     welded=flag(owner, "clamped", clamped)))
+        clamped = flag(owner, "clamped", clamped)
+        if welded is not None:
+            if clamped:
+                raise InputError(f"{owner}: clamped=True welds every member to the frame; welded= names "
+                                 "members welded to each other and pinned to the frame: give one of them")
+            return self._new_joint(Joint(name, _vec2(owner, "at", at), "ground",
+                                         welded=_welded_group(owner, welded)))
+        return self._new_joint(Joint(name, _vec2(owner, "at", at), "ground", welded=clamped))
 
     def joint(self, name: str, at, welded=False) -> Joint:
         """Add a joint between members: revolute, or rigid when ``welded=True``.
@@ -335,17 +425,7 @@ class Mechanism:
             two links with a crank pinned where they meet).
         """
         owner = f"joint '{name}'"
-        if not isinstance(welded, (bool, np.bool_)):
-            if isinstance(welded, str) or not isinstance(welded, (tuple, list)) or \
-                    not all(isinstance(x, str) for x in welded):
-                raise InputError(f"{owner}: welded must be True/False or a sequence of member names, "
-                                 f"got {welded!r}")
-            welded = tuple(welded)
-            if len(welded) < 2 or len(set(welded)) != len(welded):
-                raise InputError(f"{owner}: welded names the members welded to each other: two or more "
-                                 f"different ones, got {welded!r}")
-        else:
-            welded = bool(welded)
+        welded = bool(welded) if isinstance(welded, (bool, np.bool_)) else _welded_group(owner, welded)
         return self._new_joint(Joint(name, _vec2(owner, "at", at), "revolute", welded=welded))
 
     def slider(self, name: str, at, axis=None, *, on: str | None = None, rotation: str = "free",
@@ -445,7 +525,7 @@ class Mechanism:
              section: Section | None = None, elements: int = 1, rigid: bool = False,
              ends=("pin", "pin"), mass: float | None = None, J: float | None = None,
              mass_matrix: str = "consistent", timoshenko: bool = False,
-             kinematic: bool = True, length: float | None = None) -> Link:
+             kinematic: bool = True, length: float | None = None, through=None) -> Link:
         """Add a straight link from joint ``a`` to joint ``b``.
 
         Parameters
@@ -487,6 +567,15 @@ class Mechanism:
             ``length`` by more than :data:`LENGTH_RTOL` (relative), a
             :class:`~kedfem.errors.LengthWarning` is issued (and
             logged) naming the joints and both lengths.
+        through : str or sequence of str, optional
+            Joints inside the link, on its ``a -> b`` line, that it passes
+            through: a pin to the frame (a ground joint: a walking beam on its
+            saddle bearing) or to other members (a revolute joint) anywhere
+            along it, without splitting the link. A flexible link gets a mesh
+            node at each (the stretches between them meshed uniformly, the
+            ``elements`` shared in proportion to their lengths); its elastic
+            rotation there is its own, or tied to the members the joint welds
+            it to (``welded=``).
         """
         self._check_component_name("link", name)
         owner = f"link '{name}'"
@@ -540,13 +629,58 @@ class Mechanism:
             n_el = int(elements)
             m = material.rho * section.A * length
             j = m * length**2 / 12.0
+        through, through_at = self._through(owner, ja, jb, length, through)
+        if not kinematic and through:
+            raise InputError(f"{owner}: a link with kinematic=False follows the chord between its ends; "
+                             "it cannot pass through a joint (through=)")
+        if n_el and n_el < len(through) + 1:
+            raise InputError(f"{owner}: {len(through)} joint(s) passed through make {len(through) + 1} "
+                             f"stretches; elements must be at least {len(through) + 1}, got {n_el}")
         lk = Link(name, a, b, bool(rigid), material, section, n_el, ends, float(m), float(j),
-                  mass_matrix, bool(timoshenko), length, bool(kinematic))
+                  mass_matrix, bool(timoshenko), length, bool(kinematic), through, through_at)
         if stated is not None:
             self._check_length(owner, ja, jb, length, stated)
         self.links[name] = lk
         self.graph.add_edge(a, b, key=name, kind="link", component=lk)
+        for t in through:  # the joints passed through belong to the link's part
+            self.graph.add_edge(a, t, key=f"{name}@{t}", kind="link", component=lk)
         return lk
+
+    def _through(self, owner: str, ja: Joint, jb: Joint, length: float, through):
+        """The joints a link passes through, sorted from ``a``, and their abscissae [m]."""
+        if through is None:
+            return (), ()
+        if isinstance(through, str):
+            through = (through,)
+        if not isinstance(through, (tuple, list)) or not all(isinstance(t, str) for t in through):
+            raise InputError(f"{owner}: through must be a joint name or a sequence of joint names, "
+                             f"got {through!r}")
+        if len(set(through)) != len(through):
+            raise InputError(f"{owner}: through names a joint twice: {list(through)!r}")
+        pa = np.array(ja.at)
+        e1 = (np.array(jb.at) - pa) / length
+        out = []
+        for t in through:
+            jt = self._check_joint(owner, t)
+            if t in (ja.name, jb.name):
+                raise InputError(f"{owner}: through='{t}' is an end of the link; through names joints "
+                                 "inside it")
+            if jt.kind not in ("ground", "revolute"):
+                raise InputError(f"{owner}: through='{t}' is a {jt.kind} joint; a link passes through a "
+                                 "ground joint (a pin to the frame) or a revolute joint (a pin to other "
+                                 "members); for a block on the link use slider(..., on=)")
+            d = np.array(jt.at) - pa
+            xi = float(d @ e1)
+            off = float(d[0] * e1[1] - d[1] * e1[0])
+            if abs(off) > 1e-9 * length:
+                raise InputError(f"{owner}: joint '{t}' at {jt.at} is {abs(off):.3g} m off the link's line "
+                                 f"{ja.at} -> {jb.at}; a link passes through joints on its axis")
+            if not 1e-9 * length < xi < length * (1 - 1e-9):
+                raise InputError(f"{owner}: joint '{t}' is at abscissa {xi:.6g} m, not inside the link "
+                                 f"(0 to {length:.6g} m)")
+            out.append((xi, t))
+        out.sort()
+        return tuple(t for _x, t in out), tuple(x for x, _t in out)
 
     @staticmethod
     def _check_length(owner: str, ja: Joint, jb: Joint, length: float, stated: float) -> None:
@@ -934,12 +1068,12 @@ class Mechanism:
     # ------------------------------------------------------------------ queries
     def _member_joints(self, member: str) -> tuple[str, ...]:
         if member in self.links:
-            return self.links[member].joints
+            return self.links[member].attached
         return self.bodies[member].joints
 
     def members_at(self, joint: str) -> list[str]:
         """Links and bodies attached at ``joint``, in definition order."""
-        out = [n for n, lk in self.links.items() if joint in lk.joints]
+        out = [n for n, lk in self.links.items() if joint in lk.attached]
         out += [n for n, b in self.bodies.items() if joint in b.joints]
         return out
 
@@ -977,7 +1111,8 @@ class Mechanism:
             return  # validated before, and nothing was added since
         if not self.links and not self.bodies:
             raise InputError(f"{self.name}: has no links or bodies")
-        used = {j for m in (*self.links.values(), *self.bodies.values()) for j in m.joints}
+        used = {j for m in self.links.values() for j in m.attached} | \
+            {j for m in self.bodies.values() for j in m.joints}
         unused = [j for j in self.joints if j not in used]
         if unused:
             raise InputError(f"{self.name}: joint(s) {', '.join(unused)} belong to no link or body")
@@ -1044,6 +1179,10 @@ class Mechanism:
                                      f"{self.joints[lk.a].at} -> {self.joints[lk.b].at}, its axis "
                                      f"({ax[0]:.6g}, {ax[1]:.6g}); check at= and axis=, or make the link "
                                      "rigid for an offset or oblique slot")
+                if lk.through:
+                    raise InputError(f"{owner}: a block on flexible link '{lk.name}', which passes through "
+                                     f"joint(s) {', '.join(lk.through)}, is not supported; split the link "
+                                     "at the joint (two links welded there) instead")
                 if lk.elements and self.links[lk.name].timoshenko:
                     raise InputError(f"{owner}: a block on Timoshenko link '{lk.name}' is not supported "
                                      "(the deflection under the block uses Euler-Bernoulli shape functions)")

@@ -194,6 +194,8 @@ class _LoopModel:
                 pa, pb = np.array(mech.joints[lk.a].at), np.array(mech.joints[lk.b].at)
                 theta0[i] = math.atan2(pb[1] - pa[1], pb[0] - pa[0])
                 edges.append((lk.a, lk.b, "member", i, np.array([lk.length, 0.0])))
+                for t, x in zip(lk.through, lk.through_at):  # joints on the link's line
+                    edges.append((lk.a, t, "member", i, np.array([x, 0.0])))
             else:
                 b = mech.bodies[name]
                 p0 = np.array(mech.joints[b.joints[0]].at)
@@ -294,7 +296,7 @@ class _LoopModel:
                 continue
             mem = [m for m in mech.members_at(j.name) if m in self.mindex and j.welds(m)]
             idx = [self.mindex[m] for m in mem]
-            if j.kind == "ground":
+            if j.clamped:
                 for i in idx:
                     if mech.driven(self.member_names[i]) is None:
                         rows.append((i, -1, 0.0, f"clamped ground joint '{j.name}'"))

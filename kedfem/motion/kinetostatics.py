@@ -156,7 +156,7 @@ def member_centre(mech: Mechanism, motion: Motion, name: str):
 
 
 def _members_of(mech: Mechanism, name: str) -> tuple[str, ...]:
-    return mech.links[name].joints if name in mech.links else mech.bodies[name].joints
+    return mech.links[name].attached if name in mech.links else mech.bodies[name].joints
 
 
 class _Layout:
@@ -200,7 +200,7 @@ class _Layout:
             if j.kind == "ground":
                 self.g_col[j.name] = col
                 col += 2
-                if j.welded or j.name in extra_g:
+                if j.clamped or j.name in extra_g:
                     self.gm_col[j.name] = col
                     col += 1
             elif j.kind == "slider":
@@ -217,7 +217,7 @@ class _Layout:
                     col += 1
         self.d_col = []  # None: known, or acting through a clamped ground joint's moment
         for d in mech.drives:
-            if d.member in kt or mech.joints[d.ground_joint].welded:
+            if d.member in kt or mech.joints[d.ground_joint].clamped:
                 self.d_col.append(None)
             else:
                 self.d_col.append(col)
@@ -528,8 +528,9 @@ def link_axial_force(mech: Mechanism, motion: Motion, forces: JointForces, link:
     ``N(s) = rhoA (s a_a.e1 - omega^2 s^2 / 2) - F_a.e1 - rhoA s g.e1``
     (tension positive), from the balance of the part ``[0, s]`` of the link
     with the force ``F_a`` the pin at ``a`` exerts on it; averaged over each
-    segment in closed form. A pin on the link (a slot with a locked slide)
-    adds the axial part of its force beyond its abscissa.
+    segment in closed form. A pin on the link (a slot with a locked slide, or
+    a joint the link passes through) adds the axial part of its force beyond
+    its abscissa.
 
     Parameters
     ----------
@@ -565,4 +566,7 @@ def link_axial_force(mech: Mechanism, motion: Motion, forces: JointForces, link:
         xi = float(d @ e0)
         beyond = np.clip((s2 - xi) / np.maximum(s2 - s1, 1e-300), 0.0, 1.0)  # share of the segment past xi
         N = N + np.einsum("nd,nd->n", F, e1)[:, None] * beyond  # the pin's force on the link is -F
+    for j, xi in zip(lk.through, lk.through_at):  # a pin the link passes through: its force beyond it
+        beyond = np.clip((s2 - xi) / np.maximum(s2 - s1, 1e-300), 0.0, 1.0)
+        N = N - np.einsum("nd,nd->n", forces.on(link, j), e1)[:, None] * beyond
     return N
