@@ -291,7 +291,7 @@ def test_spectral_radius_is_not_lowered_by_the_schemes_numerical_damping():
     coarse = kf.solve(kf.Scene(m, effects=eff, damping=z2, steps=48)).stability
     assert coarse.spectral_radius < 0.5 * expected <= expected <= coarse.spectral_radius + coarse.error, \
         coarse.describe()
-    need = int(re.search(r"resolved from (\d+) elements", st.note).group(1))
+    need = int(re.search(r"a resolved radius needs about (\d+) elements", st.note).group(1))
     fine = kf.solve(kf.Scene(m, effects=eff, damping=z2, steps=need)).stability
     assert fine.spectral_radius == pytest.approx(expected, rel=1e-2), (fine.describe(), expected)
     assert fine.verdict == "stable" and not fine.note

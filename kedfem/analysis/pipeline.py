@@ -826,11 +826,10 @@ class _Run:
                    else "not in its error: give more elements")
             by = (f"by at most {100.0 * bound:.2g} %" if math.isfinite(bound) and bound < 1.0
                   else f"by at most a factor {1.0 + bound:.2g}" if math.isfinite(bound) and bound < 9.0
-                  else f"by a factor of up to {1.0 + bound:.0e}" if math.isfinite(bound)
-                  else "by a factor too large to bound")
+                  else "by orders of magnitude")
             note = (f"{self.levels[-1].n} time elements damp the modes up to {self._stab_f:.4g} Hz numerically "
                     f"by more than {self.scene.rtol or 1e-3:.0e} per cycle: the spectral radius is too low, "
-                    f"{by} ({why}; resolved from {self._stab_need} elements)")
+                    f"{by} ({why}; a resolved radius needs about {self._stab_need} elements)")
         return Stability(rho[-1], err, verdict, self.scheme.name, self.levels[-1].n, note,
                          conservative=bool(undamped(self.scene) and verdict == "marginal"))
 
