@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import kedfem as kf
+from kedfem.analysis.fatigue import fatigue_table
 from test_examples import load
 
 pu = load("pumping_unit")
@@ -71,6 +72,15 @@ def test_the_beam_through_its_pin_is_the_beam_split_and_welded_there():
         assert _rel(l1.torque(response=h), l2.torque(response=h)) < 1e-10, h
         for joint in ("S", "O", "B"):
             assert _rel(l1.force(joint, None, h), l2.force(joint, None, h)) < 1e-10, (h, joint)
+    # fatigue: both sides of the saddle's pin (the axial force steps there), as the two links' ends
+    f1, f2 = fatigue_table(one), fatigue_table(two)
+    r1 = f1.links[0]
+    r2 = max(f2.links, key=lambda lf: lf.largest_range)
+    assert abs(r1.largest_range / r2.largest_range - 1) < 1e-10
+    assert abs(r1.worst_station - (r2.worst_station + (kw["head_arm"] if r2.link == "rear" else 0.0))) < 1e-9
+    assert np.count_nonzero(np.isclose(r1.stations, kw["head_arm"])) == 2
+    # the peak deflection: of each arm between the pins, relative to its own chord
+    assert abs(p1.deflection / max(p.deflection for p in two.peaks()) - 1) < 1e-10
     # the saddle bearing carries the beam: its force on the frame balances the head's and the pitman's
     assert np.max(np.abs(one.loads().force("S", None, "rigid"))) > 1e5
 
@@ -187,3 +197,57 @@ def test_ground_welded_names_members_welded_to_each_other():
         m.ground("S", (0.0, 0.0), clamped=True, welded=("a", "b"))
     with pytest.raises(kf.InputError, match="two or more different ones"):
         m.ground("S", (0.0, 0.0), welded=("a",))
+    with pytest.raises(kf.InputError, match="to weld every member to the frame, give clamped=True"):
+        m.ground("S", (0.0, 0.0), welded=True)
+
+
+# ------------------------------------------------- a crank with a counterweight arm past its pivot
+def crank_with_arm(split: bool, kt=None):
+    """A slider-crank whose flexible crank ``C A`` carries a counterweight arm past its driven
+    pivot O: one link through O, or two links welded there (``ground(welded=)``)."""
+    steel, sec = kf.Material(E=2.1e11, rho=7850.0), kf.Section(A=2e-4, I=6.67e-9, c=0.01)
+    m = kf.Mechanism("crank with arm")
+    m.ground("O", (0.0, 0.0), welded=("arm", "crank") if split else None)
+    m.joint("C", (-0.1, 0.0))
+    m.joint("A", (0.15, 0.0))
+    m.slider("S", (0.6, 0.0), axis=(1, 0))
+    if split:
+        m.link("arm", "C", "O", material=steel, section=sec, elements=2)
+        m.link("crank", "O", "A", material=steel, section=sec, elements=3)
+    else:
+        m.link("crank", "C", "A", material=steel, section=sec, elements=5, through="O")
+    m.link("rod", "A", "S", material=steel, section=sec, elements=4)
+    m.point_mass("C", 0.5)
+    m.point_mass("S", 1.0)
+    m.drive("crank", 2 * math.pi * 10, torsional_stiffness=kt)
+    return m, steel, sec
+
+
+def test_a_driven_crank_through_its_pivot_is_the_crank_welded_to_its_arm():
+    """The arm is a cantilever from the driven pivot (static tip load against ``P a^3 / 3EI``);
+    running, with and without a shaft's stiffness, the two builds agree, drive torque included."""
+    for split in (False, True):
+        m, steel, sec = crank_with_arm(split)
+        m.load("P", "C", force=(0.0, -10.0))
+        st = kf.static_response(m, effects=("loads",), crank_angle=0.0)
+        assert abs(st.joint_displacement("C")[1] / (-10.0 * 0.1**3 / (3 * steel.E * sec.I)) - 1) < 1e-9, split
+    for kt in (None, 500.0):
+        one, two = _solve(crank_with_arm(False, kt)[0]), _solve(crank_with_arm(True, kt)[0])
+        for j in ("C", "A", "S"):
+            assert _rel(one.joint_displacement(j), two.joint_displacement(j)) < 1e-10, (kt, j)
+        for h in ("rigid", "elastic"):
+            assert _rel(one.loads().torque(response=h), two.loads().torque(response=h)) < 1e-10, (kt, h)
+
+
+@pytest.mark.parametrize("elements", [3, 4, 6, 20, 40])
+def test_the_stretches_share_exactly_the_elements_given(elements):
+    """Two pins near the ends: the short stretches get one element each, the long one the rest."""
+    m = kf.Mechanism("m")
+    m.ground("S1", (-0.95, 0.0))
+    m.ground("S2", (0.95, 0.0))
+    m.joint("H", (-1.0, 0.0))
+    m.joint("B", (1.0, 0.0))
+    lk = m.link("beam", "H", "B", material=STEEL, section=SEC, elements=elements, through=("S1", "S2"))
+    assert sum(c for _f, c, _le in lk.segments()) == lk.element_lengths.size == elements
+    assert lk.nodes[lk.node_of("S1")] == pytest.approx(0.05) and lk.nodes[lk.node_of("S2")] == pytest.approx(1.95)
+    assert np.isclose(lk.element_lengths.sum(), 2.0)

@@ -87,8 +87,9 @@ class Observables:
         Output instant nearest to that peak.
     stress_station : ndarray of int, shape (n_links,)
         Station (node) of that peak.
-    deflection_history : tuple of ndarray, each (n_out,)
-        Mid-span deflection relative to the chord [m].
+    deflection_history : tuple of ndarray, each (n_out,) or (n_out, n_stretches)
+        Mid-span deflection relative to the chord [m] (of each stretch of a link passing
+        through joints).
     stress_history : tuple of ndarray, each (n_out, n_stations)
         Stress at every station [Pa] (``(n_out, 0)`` without ``c``).
     has_stress : tuple of bool

@@ -145,15 +145,16 @@ def fibre_stress(res, link: str, per_element: int = 1) -> FibreStress:
     Returns
     -------
     FibreStress
-        Arrays (n, n_el per_element + 1).
+        Arrays (n, n_el per_element + 1), one station more at each joint the link passes
+        through (its pin's two sides).
     """
-    N, M = res.section_forces(link, per_element)
+    N, M = res.section_forces(link, per_element, sides=True)  # both sides of a pin inside the link
     sec = res.model.mech.links[link].section
     if sec.c is None:
         raise InputError(f"link '{link}': its section has no extreme-fibre distance c, so the fibre "
                          "stresses are unknown (give Section(..., c=...))")
     bend = M * sec.c / sec.I
-    return FibreStress(link, res.stations(link, per_element), res.crank_angle, N / sec.A - bend,
+    return FibreStress(link, res.stations(link, per_element, sides=True), res.crank_angle, N / sec.A - bend,
                        N / sec.A + bend, N, M)
 
 

@@ -468,8 +468,11 @@ def _elastic_known(result, asm, skip=frozenset()) -> KnownForces:
             continue
         ends = _end_forces(result, lk)
         drive = mech.driven(lk.name)
-        for t in lk.through:  # a pin inside the link: its force, and its moment where welded
+        for t in lk.through:  # a pin inside the link: its force, its moment where welded or driven
             force[(lk.name, t)], M = ends[(lk.name, t)]
+            root = drive is not None and drive.ground_joint == t
+            if root and drive.torsional_stiffness is None:
+                torque[lk.name] = M
             if mech.joints[t].welds(lk.name):
                 moment[(lk.name, t)] = M
                 if mech.joints[t].clamped:

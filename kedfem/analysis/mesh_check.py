@@ -102,23 +102,27 @@ class MeshError:
 
 
 def _remeshed(mech, elements):
-    """A copy of ``mech`` whose flexible links have ``elements(e)`` elements (``mech`` unchanged)."""
+    """A copy of ``mech`` whose flexible links have ``elements(e, link)`` elements (``mech`` unchanged)."""
     new = copy.deepcopy(mech)
     for name, lk in list(new.links.items()):
         if not lk.rigid:
-            new.links[name] = dataclasses.replace(lk, elements=int(elements(lk.elements)))
+            # at least one element per stretch between the joints the link passes through
+            new.links[name] = dataclasses.replace(lk, elements=max(int(elements(lk.elements, lk)),
+                                                                   len(lk.through) + 1))
     return new
 
 
 def coarsened(mech, factor: int = 2):
     """A copy of ``mech`` with every flexible link meshed into ``elements // factor`` (>= 1) elements."""
-    return _remeshed(mech, lambda e: max(1, e // factor))
+    return _remeshed(mech, lambda e, _lk: max(1, e // factor))
 
 
 def comparison_mesh(mech, factor: int = 2):
     """A copy of ``mech`` meshed for the mesh check: ``e // factor`` elements per flexible
-    link where that leaves at least two, ``e * factor`` otherwise."""
-    return _remeshed(mech, lambda e: e // factor if e // factor >= 2 else e * factor)
+    link where that leaves at least two (and one per stretch of a link passing through joints),
+    ``e * factor`` otherwise."""
+    return _remeshed(mech, lambda e, lk: e // factor if e // factor >= max(2, len(lk.through) + 1)
+                     else e * factor)
 
 
 def mesh_error(res, factor: int = 2) -> MeshError | None:

@@ -203,12 +203,13 @@ def _per_element(k) -> int:
     return int(k)
 
 
-def _on_stations(X: np.ndarray, steps=(), larger: bool = False) -> np.ndarray:
+def _on_stations(X: np.ndarray, steps=(), larger: bool = False, sides: bool = False) -> np.ndarray:
     """Element values (n, n_el, k + 1) on the link's stations (n, n_el k + 1), nodes averaged.
 
     At the nodes ``steps`` (joints the link passes through, where a pin's force
     steps the section forces) ``larger=True`` takes the larger of the two sides
-    (a stress) instead of their mean.
+    (a stress) instead of their mean; ``sides=True`` gives both, the ``a`` side
+    first (one more station per step node).
     """
     n, ne, k1 = X.shape
     k = k1 - 1
@@ -220,6 +221,10 @@ def _on_stations(X: np.ndarray, steps=(), larger: bool = False) -> np.ndarray:
     if larger:
         for i in steps:
             out[:, i * k] = np.maximum(X[:, i - 1, k], X[:, i, 0])
+    if sides and len(steps):
+        steps = np.asarray(steps, dtype=int)
+        out[:, steps * k] = X[:, steps - 1, k]
+        out = np.insert(out, steps * k + 1, X[:, steps, 0], axis=1)
     return out
 
 
@@ -291,7 +296,9 @@ class LinkPeaks:
     ----------
     link : str
     deflection : float
-        Largest ``|mid-span deflection relative to the chord|`` over the cycle [m].
+        Largest ``|mid-span deflection relative to the chord|`` over the cycle [m] (of a link
+        passing through joints, ``through=``: of each stretch between them, relative to its
+        own chord, the largest).
     deflection_angle : float
         Crank angle of that peak [rad] (as :attr:`PeriodicResult.crank_angle`), in ``[0, 2 pi)``.
     stress : float
@@ -467,18 +474,23 @@ class PeriodicResult:
             gm = self._cache["beam_map"] = self.model.group_map("beam", self.motion)
         return gm
 
-    def stations(self, link: str, per_element: int = 1) -> np.ndarray:
+    def stations(self, link: str, per_element: int = 1, sides: bool = False) -> np.ndarray:
         """Stations (n_el per_element + 1,) along a flexible link, from joint ``a`` [m].
 
-        ``per_element = 1``: the nodes; more divides every element evenly.
+        ``per_element = 1``: the nodes; more divides every element evenly. ``sides=True``:
+        a joint the link passes through twice, for the section forces on either side of
+        its pin (:meth:`section_forces`).
         """
         lk = self._link(link)
         k = _per_element(per_element)
         if not lk.through:
             return np.linspace(0.0, lk.length, lk.elements * k + 1)
         frac = np.arange(k) / k
-        x = (lk.nodes[:-1, None] + frac[None, :] * lk.element_lengths[:, None]).ravel()
-        return np.append(x, lk.length)
+        x = np.append((lk.nodes[:-1, None] + frac[None, :] * lk.element_lengths[:, None]).ravel(), lk.length)
+        if sides:
+            steps = np.array([lk.node_of(t) for t in lk.through], dtype=int) * k
+            x = np.insert(x, steps + 1, x[steps])
+        return x
 
     def _link(self, link):
         mech = self.model.mech
@@ -526,11 +538,32 @@ class PeriodicResult:
             Le = lk.length / ne
         N = el.shape_functions(Le, [xe])[0, 0]  # (2, 6)
         v = d[:, e] @ N[1]
-        if relative_to == "chord":
+        if relative_to == "chord" and lk.through:  # the chord of the stretch between the pins around it
+            x = xi * lk.length
+            cuts = (0.0,) + lk.through_at + (lk.length,)
+            k = int(min(np.searchsorted(cuts, x, side="right") - 1, len(cuts) - 2))
+            f, c, _le = lk.segments()[k]
+            u = (x - cuts[k]) / (cuts[k + 1] - cuts[k])
+            v = v - ((1 - u) * d[:, f, 1] + u * d[:, f + c - 1, 4])
+        elif relative_to == "chord":
             va = d[:, 0, 1]
             vb = d[:, -1, 4]
             v = v - ((1 - xi) * va + xi * vb)
         return v
+
+    def _mid_deflections(self, lk) -> np.ndarray:
+        """Mid-span deflections relative to the chord [m]: (n,) for a link, (n, stretches) for a link
+        passing through joints (each stretch between them, relative to its own chord)."""
+        if not lk.through:
+            return self.deflection(lk.name, 0.5, relative_to="chord")
+        cuts = (0.0,) + lk.through_at + (lk.length,)
+        return np.stack([self.deflection(lk.name, 0.5 * (cuts[k] + cuts[k + 1]) / lk.length, relative_to="chord")
+                         for k in range(len(cuts) - 1)], axis=-1)
+
+    def _peak_deflection(self, lk) -> np.ndarray:
+        """``|mid-span deflection relative to the chord|`` (n,), the largest of a link's stretches."""
+        d = np.abs(self._mid_deflections(lk))
+        return d if d.ndim == 1 else d.max(axis=-1)
 
     # ------------------------------------------------------- section forces
     def _axial_fe(self, link: str) -> np.ndarray:
@@ -811,15 +844,19 @@ class PeriodicResult:
             acc = self._cache["acceleration"] = self.sampler.acceleration(self.t)
         return acc
 
-    def section_forces(self, link: str, per_element: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    def section_forces(self, link: str, per_element: int = 1, sides: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """Axial force ``N`` [N] (tension positive) and bending moment ``M = EI v''`` [N m] at the
         link's stations, each (n, n_el per_element + 1), by element equilibrium (nodes averaged).
 
         The axial force here is at the stations; :meth:`axial_force` gives it at the element
-        midpoints.
+        midpoints. At a joint the link passes through (``through=``) the pin's force steps
+        them: the mean of the two sides, or with ``sides=True`` both (the stations of
+        ``stations(link, per_element, sides=True)``).
         """
-        M, N = self._forces(self._link(link).name, _per_element(per_element))
-        return _on_stations(N), _on_stations(M)
+        lk = self._link(link)
+        M, N = self._forces(lk.name, _per_element(per_element))
+        steps = [lk.node_of(t) for t in lk.through]
+        return _on_stations(N, steps, sides=sides), _on_stations(M, steps, sides=sides)
 
     def stress(self, link: str, per_element: int = 1) -> np.ndarray:
         """Largest absolute normal stress ``|N|/A + |M| c / I`` at the stations (n, n_el per_element + 1) [Pa].
@@ -915,7 +952,7 @@ class PeriodicResult:
         links = self.model.mech.flexible_links
         series = []  # (link index, kind, grid values (n,) or (n, stations))
         for i, lk in enumerate(links):
-            series.append((i, "deflection", np.abs(self.deflection(lk.name, 0.5, relative_to="chord"))))
+            series.append((i, "deflection", self._peak_deflection(lk)))
             if lk.section.c is not None:
                 series.append((i, "stress", self.stress(lk.name, per_element=PEAK_STATIONS)))
                 if self._blocks_on(lk):  # under a block, where no station is
@@ -963,8 +1000,8 @@ class PeriodicResult:
             vals = one.stress(lk.name, per_element=PEAK_STATIONS * sub)[r]
             j = int(np.argmax(vals))
             v, dj = _vertex(vals, j)
-            if j in [lk.node_of(t) * PEAK_STATIONS * sub for t in lk.through]:
-                v, dj = float(vals[j]), 0.0  # the stress steps at a pin the link passes: no parabola
+            if {j - 1, j, j + 1} & {lk.node_of(t) * PEAK_STATIONS * sub for t in lk.through}:
+                v, dj = float(vals[j]), 0.0  # the stress steps at a pin the link passes: no parabola across
             # an evaluation at the instant's vertex (the vertices in time and along the link
             # added together over-shoot a peak on a ridge that is not along the axes)
             station = (j + dj) / sub
@@ -1014,7 +1051,7 @@ class PeriodicResult:
         cache = {}
         for si, (i, kind, vals) in enumerate(series):
             name = links[i].name
-            cache[si] = (np.abs(fine.deflection(name, 0.5, relative_to="chord")) if kind == "deflection"
+            cache[si] = (fine._peak_deflection(links[i]) if kind == "deflection"
                          else fine.block_stress(name)[0] if kind == "block"
                          else fine.stress(name, per_element=PEAK_STATIONS))
         out = dict(best)
@@ -1086,7 +1123,7 @@ class PeriodicResult:
             names.append(lk.name)
             d.append(p.deflection)
             da.append(nearest(p.deflection_angle))
-            dh.append(self.deflection(lk.name, 0.5, relative_to="chord"))
+            dh.append(self._mid_deflections(lk))
             c = lk.section.c is not None
             has.append(c)
             s.append(p.stress if c else 0.0)

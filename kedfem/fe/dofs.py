@@ -348,6 +348,8 @@ class DofNumbering:
         label = f"{lk.name}.theta@{joint}"
         drive = mech.driven(lk.name)
         if drive is not None and drive.ground_joint == joint:
+            if clamp_groups.get(joint, (None, None))[1] == lk.name:  # its welded group's (_build_beams)
+                return clamp_groups[joint][0]
             if drive.torsional_stiffness is not None:
                 q = self._new_q(label)
                 return self._add_rot(RotDof("free", label, (q,), lk.name))
@@ -380,11 +382,23 @@ class DofNumbering:
             clamp_groups[joint] = (rid, lk.name)
             return rid
         rid0, master = clamp_groups[joint]
+        if self.rots[rid0].kind == "fixed":  # welded to a crank driven without a shaft's stiffness
+            return self._add_rot(RotDof("fixed", label, (), lk.name, master, offset=True))
         return self._add_rot(RotDof("tied", label, self.rots[rid0].cols, lk.name, master, offset=True))
 
     def _build_beams(self):
         mech = self.mech
         clamp_groups: dict = {}
+        for d in mech.drives:  # a driven flexible crank welded to other members at its pivot: their rotation
+            jt, lk = mech.joints[d.ground_joint], mech.links.get(d.member)
+            if lk is None or lk.rigid or jt.clamped or not jt.welds(d.member):
+                continue
+            label = f"{d.member}.theta@{d.ground_joint}"
+            if d.torsional_stiffness is not None:
+                rid = self._add_rot(RotDof("free", label, (self._new_q(label),), d.member))
+            else:
+                rid = self._add_rot(RotDof("fixed", label, (), d.member))
+            clamp_groups[d.ground_joint] = (rid, d.member)
         self.link_nodes = {}  # unreduced flexible link -> (node point ids, node rotation ids)
         rows = {k: [] for k in ("link", "L", "EA", "EI", "rhoA", "GAs", "s1", "lumped", "timo")}
         ids = []

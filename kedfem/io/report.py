@@ -56,20 +56,22 @@ def _angle(a: float) -> str:
     return f"{math.degrees(a) % 360:7.1f}" if math.isfinite(a) else "      -"
 
 
-def _larger(*errors):
-    """The largest of the known errors (None when none is known)."""
-    known = [e for e in errors if e is not None and math.isfinite(e)]
-    return max(known) if known else None
+def _larger(time_error, mesh_error):
+    """The error a peak's digits follow: its time error, or the mesh error where that is larger
+    (None without a time estimate: a mesh check alone does not bound the peak)."""
+    if time_error is None or not math.isfinite(time_error):
+        return None
+    return max(time_error, mesh_error) if mesh_error is not None and math.isfinite(mesh_error) else time_error
 
 
 def members_text(mech) -> str:
     """Which members are flexible (with their elements) and which rigid: a rigid and a stiff flexible
     member answer differently (a Whitworth's ram, 10 % in its elastic displacement)."""
-    flex = [f"{lk.name} {lk.elements} el." for lk in mech.flexible_links]
+    flex = [f"{lk.name} ({lk.elements} el.)" for lk in mech.flexible_links]
     rigid = [n for n, lk in mech.links.items() if lk.rigid] + list(mech.bodies)
-    parts = [f"flexible {', '.join(flex)}" if flex else "none flexible"]
+    parts = [f"flexible: {', '.join(flex)}" if flex else "flexible: none"]
     if rigid:
-        parts.append(f"rigid {', '.join(rigid)}")
+        parts.append(f"rigid: {', '.join(rigid)}")
     return "; ".join(parts)
 
 
@@ -82,7 +84,7 @@ def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_di
     info = scene_summary(sc)
     L = []
     L.append(f"kedfem {__version__}: {sc.name or sc.mech.name}  [{source}]")
-    L.append(f"  mechanism   {info['mechanism']}: {members_text(sc.mech)}, {res.model.n_dof} elastic DOFs")
+    L.append(f"  mechanism   {info['mechanism']}: {res.model.n_dof} elastic DOFs; {members_text(sc.mech)}")
     L.append(f"  speed       {info['speed']}")
     how = (f"tolerance {sc.rtol:g} on the peaks" if sc.steps is None else "steps given")
     L.append(f"  solver      {res.scheme}, {res.elements} time elements ({how}), "
@@ -126,7 +128,8 @@ def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_di
             L.append(f"  {p.link:<16s} {p.deflection * 1e3:15.{nd}g} {de} {_angle(p.deflection_angle):>8s} {st} "
                      f"{se} {_angle(p.stress_angle):>8s} {ss}")
         L.append("  (deflection: mid-span, relative to the chord; stress: max |N|/A + |M| c/I; digits: down to a")
-        L.append(f"   tenth of the error, {UNKNOWN_DIGITS} where it is not estimated;")
+        L.append(f"   tenth of the time error (or the mesh error where checked and larger), {UNKNOWN_DIGITS} where "
+                 "the time error is not estimated;")
         L.append(f"   angles: {crank_angle_convention(res.model.mech)}; +-: estimated relative error of the peak)")
         if err is not None:
             L.append(f"  time-discretisation error: {err.describe()}")

@@ -188,6 +188,8 @@ class Link:
         n = np.maximum(np.floor(share).astype(int), 1)
         while n.sum() < self.elements:
             n[int(np.argmax(share - n))] += 1
+        while n.sum() > self.elements:  # the stretches raised to one element give theirs back
+            n[int(np.argmin(np.where(n > 1, share - n, np.inf)))] -= 1
         out, first = [], 0
         for k in range(lens.size):
             out.append((first, int(n[k]), float(lens[k] / n[k])))
@@ -400,6 +402,11 @@ class Mechanism:
         """
         owner = f"ground '{name}'"
         clamped = flag(owner, "clamped", clamped)
+        if isinstance(welded, (bool, np.bool_)):
+            if welded:
+                raise InputError(f"{owner}: welded= names the members welded to each other (and pinned to "
+                                 "the frame together); to weld every member to the frame, give clamped=True")
+            welded = None
         if welded is not None:
             if clamped:
                 raise InputError(f"{owner}: clamped=True welds every member to the frame; welded= names "
