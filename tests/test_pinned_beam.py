@@ -79,8 +79,14 @@ def test_the_beam_through_its_pin_is_the_beam_split_and_welded_there():
     assert abs(r1.largest_range / r2.largest_range - 1) < 1e-10
     assert abs(r1.worst_station - (r2.worst_station + (kw["head_arm"] if r2.link == "rear" else 0.0))) < 1e-9
     assert np.count_nonzero(np.isclose(r1.stations, kw["head_arm"])) == 2
+    f = 0 if r1.worst_fibre == "top" else 1  # the printed line's mean and alternating are the worst side's
+    assert r1.largest_range == pytest.approx(2 * r1.alternating[r1.worst_index, f], rel=1e-12)
+    assert f"alternating {r1.alternating[r1.worst_index, f] / 1e6:.4g} MPa" in r1.describe()
     # the peak deflection: of each arm between the pins, relative to its own chord
     assert abs(p1.deflection / max(p.deflection for p in two.peaks()) - 1) < 1e-10
+    both = one.stretch_deflections("beam")
+    assert _rel(both[:, 0], two.deflection("head", 0.5, relative_to="chord")) < 1e-10
+    assert _rel(both[:, 1], two.deflection("rear", 0.5, relative_to="chord")) < 1e-10
     # the saddle bearing carries the beam: its force on the frame balances the head's and the pitman's
     assert np.max(np.abs(one.loads().force("S", None, "rigid"))) > 1e5
 

@@ -78,6 +78,9 @@ class LinkFatigue:
         ``"top"`` or ``"bottom"``.
     safety_yield, safety_goodman, safety_soderberg : float or None
         Smallest over the link; None when the material does not state the strengths needed.
+    worst_index : int
+        Row of ``stations`` of the largest range (a station at a joint the link passes
+        through appears twice, its ``a`` side first).
     """
 
     link: str
@@ -91,6 +94,7 @@ class LinkFatigue:
     safety_yield: float | None
     safety_goodman: float | None
     safety_soderberg: float | None
+    worst_index: int = -1
 
     @property
     def largest_range(self) -> float:
@@ -99,8 +103,8 @@ class LinkFatigue:
 
     def describe(self, digits: int = 4) -> str:
         """One line in MPa and mm (``digits``: significant digits of the stresses)."""
-        i = int(np.argmin(np.abs(self.stations - self.worst_station)))
         f = 0 if self.worst_fibre == "top" else 1
+        i = self.worst_index if self.worst_index >= 0 else int(np.argmin(np.abs(self.stations - self.worst_station)))
         g = f".{int(digits)}g"
         parts = [f"{self.link}: largest range {self.largest_range / 1e6:{g}} MPa at {self.worst_station * 1e3:.1f} mm "
                  f"({self.worst_fibre} fibre: mean {self.mean[i, f] / 1e6:{g}} MPa, alternating "
@@ -176,7 +180,7 @@ def _link_fatigue(fs: FibreStress, material, peak_stress: float = 0.0) -> LinkFa
     n_g = _goodman(alt, mean, Se, Sut) if (Se and Sut) else None
     n_s = _goodman(alt, mean, Se, Sy) if (Se and Sy) else None
     return LinkFatigue(fs.link, fs.stations, mean, alt, hi, lo, float(fs.stations[i]),
-                       ("top", "bottom")[f], n_y, n_g, n_s)
+                       ("top", "bottom")[f], n_y, n_g, n_s, int(i))
 
 
 def fatigue_table(res, per_element: int = 4) -> FatigueTable:

@@ -551,14 +551,22 @@ class PeriodicResult:
             v = v - ((1 - xi) * va + xi * vb)
         return v
 
-    def _mid_deflections(self, lk) -> np.ndarray:
-        """Mid-span deflections relative to the chord [m]: (n,) for a link, (n, stretches) for a link
-        passing through joints (each stretch between them, relative to its own chord)."""
-        if not lk.through:
-            return self.deflection(lk.name, 0.5, relative_to="chord")
+    def stretch_deflections(self, link: str) -> np.ndarray:
+        """Mid-span deflection of each stretch of a link relative to its chord, (n, n_stretches) [m].
+
+        The stretches run between the link's ends and the joints it passes through
+        (``through=``; their joints: ``Link.stretches``); a link without them is one stretch,
+        its :meth:`deflection` at ``xi = 0.5`` relative to the chord.
+        """
+        lk = self._link(link)
         cuts = (0.0,) + lk.through_at + (lk.length,)
         return np.stack([self.deflection(lk.name, 0.5 * (cuts[k] + cuts[k + 1]) / lk.length, relative_to="chord")
                          for k in range(len(cuts) - 1)], axis=-1)
+
+    def _mid_deflections(self, lk) -> np.ndarray:
+        """:meth:`stretch_deflections`, (n,) for a link of one stretch."""
+        return self.deflection(lk.name, 0.5, relative_to="chord") if not lk.through \
+            else self.stretch_deflections(lk.name)
 
     def _peak_deflection(self, lk) -> np.ndarray:
         """``|mid-span deflection relative to the chord|`` (n,), the largest of a link's stretches."""

@@ -1,7 +1,8 @@
 """Files for fatigue: the fatigue table and tidy stress histories (CSV, NPZ), SI units.
 
 ``fatigue.csv``: one row per link, station and fibre (``link, station_m, fibre, mean_Pa,
-alternating_Pa, max_Pa, min_Pa``). ``histories.csv``: tidy, one row per crank angle, link,
+alternating_Pa, max_Pa, min_Pa``; a station at a joint the link passes through, ``through=``,
+appears twice: the pin's ``a`` side, then its ``b`` side). ``histories.csv``: tidy, one row per crank angle, link,
 station and quantity (``crank_angle_deg, link, station_m, quantity, value``) with the
 quantities ``stress_top_Pa``, ``stress_bottom_Pa``, ``axial_force_N``, ``bending_moment_Nm``
 and ``deflection_m`` (transverse, in the link's frame). ``histories.npz``: the same as arrays,

@@ -149,7 +149,10 @@ def link_response(res, path, links: Sequence[str] | None = None) -> Path:
     mech = res.model.mech
     any_stress = False
     for lk in links:
-        axes[0, 0].plot(x, _closed(res.deflection(lk, 0.5, relative_to="chord"), order), label=lk)
+        stretches = mech.links[lk].stretches
+        d = res.stretch_deflections(lk)
+        for k, (ja, jb) in enumerate(stretches):  # a link through joints: each stretch from its chord
+            axes[0, 0].plot(x, _closed(d[:, k], order), label=lk if len(stretches) == 1 else f"{lk} {ja}-{jb}")
         if mech.links[lk].section.c is not None:
             axes[1, 0].plot(x, _closed(res.stress(lk).max(axis=1), order), label=lk)
             any_stress = True

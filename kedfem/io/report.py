@@ -127,7 +127,9 @@ def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_di
             se = pm(e.stress) if (e and math.isfinite(p.stress)) else pm(None)
             L.append(f"  {p.link:<16s} {p.deflection * 1e3:15.{nd}g} {de} {_angle(p.deflection_angle):>8s} {st} "
                      f"{se} {_angle(p.stress_angle):>8s} {ss}")
-        L.append("  (deflection: mid-span, relative to the chord; stress: max |N|/A + |M| c/I; digits: down to a")
+        inner = any(lk.through for lk in res.model.mech.flexible_links)
+        L.append("  (deflection: mid-span, relative to the chord" + (" (of each stretch between the pins inside a link, "
+                 "the largest)" if inner else "") + "; stress: max |N|/A + |M| c/I; digits: down to a")
         L.append(f"   tenth of the time error (or the mesh error where checked and larger), {UNKNOWN_DIGITS} where "
                  "the time error is not estimated;")
         L.append(f"   angles: {crank_angle_convention(res.model.mech)}; +-: estimated relative error of the peak)")

@@ -166,6 +166,12 @@ class Link:
         """Every joint of the link: its ends, then the joints it passes through (``through=``)."""
         return (self.a, self.b) + self.through
 
+    @property
+    def stretches(self) -> tuple[tuple[str, str], ...]:
+        """The joints at the ends of each stretch between the link's ends and the joints it passes through."""
+        js = (self.a,) + self.through + (self.b,)
+        return tuple(zip(js[:-1], js[1:]))
+
     def segments(self) -> tuple[tuple[int, int, float], ...]:
         """The mesh's uniform stretches between the ends and the joints passed through.
 

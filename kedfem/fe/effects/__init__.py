@@ -78,7 +78,7 @@ def declared_items(mech) -> dict[str, list[str]]:
     ld = [f"load '{n}'" for n in mech.loads] + [f"friction '{n}'" for n in mech.frictions]
     if ld:
         out["loads"] = ld
-    if getattr(mech, "gravity_declared", False):
+    if getattr(mech, "gravity_declared", False) and any(g != 0.0 for g in mech.gravity):  # (0, 0): none
         out["gravity"] = [f"gravity {tuple(mech.gravity)} m/s^2"]
     return out
 
