@@ -556,10 +556,40 @@ class Assembler:
         (nt, n_el, d, d) and ``Qx`` (nt, n_el, d) may be None.
         """
         E = gm.E
-        Et = np.swapaxes(E, -1, -2)
         R = E if right is None else right
         nt = dK.shape[0]
-        if Kx is not None:
-            dK += self.model.scatter_matrix(gname, np.broadcast_to(Et @ Kx @ R, (nt,) + (E.shape[1], E.shape[3], E.shape[3])))
-        if Qx is not None:
-            dQ += self.model.scatter_vector(gname, np.broadcast_to((Et @ Qx[..., None])[..., 0], (nt,) + (E.shape[1], E.shape[3])))
+        parts = self._narrow_parts(gname, E.shape[-1])
+        for key, els, m in parts:  # each bucket at its own width (a block widens a few elements only)
+            Ek = E if len(parts) == 1 else E[:, els, :, :m]
+            Rk = R if len(parts) == 1 else R[:, els, :, :m]
+            Et = np.swapaxes(Ek, -1, -2)
+            if Kx is not None:
+                Kk = Kx if len(parts) == 1 else Kx[:, els]
+                dK += self.model.scatter_matrix(key, np.broadcast_to(Et @ Kk @ Rk, (nt,) + (Ek.shape[1], m, m)))
+            if Qx is not None:
+                Qk = Qx if len(parts) == 1 else Qx[:, els]
+                dQ += self.model.scatter_vector(key, np.broadcast_to((Et @ Qk[..., None])[..., 0], (nt,) + (Ek.shape[1], m)))
+
+    def _narrow_parts(self, gname: str, width: int) -> list:
+        """``(key, elements, width)`` of a group's buckets (:meth:`FEModel.buckets`) when the whole
+        group's map (``width`` columns) holds each bucket's columns first, in its order; else the
+        group whole. The state terms are built on the whole group's map (one map for all its
+        elements); scattered per bucket, the elements away from a block keep their narrow width."""
+        cache = self.__dict__.setdefault("_parts_cache", {})
+        if (gname, width) not in cache:
+            full = self.model._static_layout(gname)[0]
+            parts = [(gname, np.arange(full.shape[0]), width)]
+            buckets = self.model.buckets(gname)
+            if len(buckets) > 1 and full.shape[1] == width:
+                cand = []
+                for key, els in buckets.items():
+                    cols = self.model._static_layout(key)[0]
+                    m = cols.shape[1]
+                    beyond = full[els, m:]
+                    if not (np.array_equal(full[els, :m], cols) and (beyond >= self.model.n_dof).all()):
+                        cand = None
+                        break
+                    cand.append((key, els, m))
+                parts = cand or parts
+            cache[(gname, width)] = parts
+        return cache[(gname, width)]
