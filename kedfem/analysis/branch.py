@@ -52,6 +52,9 @@ log = logging.getLogger(__name__)
 
 #: most points of one branch
 MAX_POINTS = 400
+#: most linear solves one continuation to a target may spend (:func:`reach`; the four-bar preset
+#: at 350 rpm needs 253, a branch that wanders without end would go on for thousands)
+MAX_SOLVES = 1000
 #: most linear solves of Newton from the linear response when a continuation looks for its start
 START_ITER = 16
 #: most linear solves of one natural continuation step (a step that needs more is halved)
@@ -502,7 +505,7 @@ def in_unit(value: float, unit: tuple = (1.0, ""), digits: int = 6) -> str:
 
 
 def reach(family: Family, target: float, *, eps: float, lowest: float | None = None,
-          max_steps: int = MAX_POINTS, unit: tuple = (1.0, "")) -> Reached:
+          max_steps: int = MAX_POINTS, unit: tuple = (1.0, ""), max_solves: int = MAX_SOLVES) -> Reached:
     """The response at ``target`` by continuation from a parameter value where Newton's method
     converges from the linear response.
 
@@ -524,6 +527,8 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
         Smallest parameter value tried as a start.
     max_steps : int
         Most continuation steps.
+    max_solves : int
+        Most linear solves (the continuation stops, with the error below, when they are spent).
     unit : (float, str)
         Factor and name of the unit the messages state parameter values in (for the speed:
         ``(60 / (2 pi), "rpm")``).
@@ -545,6 +550,11 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
         return in_unit(v, unit)
 
     lowest = abs(target) / 64 if lowest is None else abs(lowest)
+    solves0 = family.solves
+
+    def spent() -> bool:
+        return family.solves - solves0 >= max_solves
+
     start = None
     lam = 0.75 * abs(target)
     while lam >= lowest * (1 - 1e-12):
@@ -565,7 +575,7 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
     step = 0.1 * abs(start.lam)
     folds: list[float] = []
     steps = 0
-    while abs(pts[-1].lam) < abs(target) * (1 - 1e-12) and steps < max_steps:
+    while abs(pts[-1].lam) < abs(target) * (1 - 1e-12) and steps < max_steps and not spent():
         steps += 1
         new = sign * min(abs(target), abs(pts[-1].lam) + step)
         try:
@@ -582,21 +592,23 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
         # the natural step cannot be shortened further: a fold; follow the branch through it
         if len(pts) < 2:
             break
-        found = _through_folds(family, pts, target, eps, folds, max_steps - steps)
+        found = _through_folds(family, pts, target, eps, folds, max_steps - steps, spent)
         if found is None:
             break
         pts.extend(found)
         step = 0.02 * abs(pts[-1].lam)
     last = pts[-1]
     if abs(last.lam - target) > 1e-12 * abs(target):
+        why = f" (its budget of {max_solves} linear solves spent)" if spent() else ""
         raise NonlinearSolveError(
             f"the continuation from {fmt(start.lam)} stalled at {fmt(last.lam)} before the target "
-            f"{fmt(target)}", highest=abs(last.lam),
+            f"{fmt(target)}{why}", highest=abs(last.lam),
             tried=f"Newton from the linear response, then continuation from {fmt(start.lam)}")
     return Reached(last, abs(start.lam), steps, tuple(folds), family.solves, tuple(pts))
 
 
-def _through_folds(family: Family, pts: list, target: float, eps: float, folds: list, budget: int):
+def _through_folds(family: Family, pts: list, target: float, eps: float, folds: list, budget: int,
+                   spent=lambda: False):
     """Pseudo-arclength from the last two points until the branch crosses ``target`` again:
     the points on the way, the last one at ``target`` (Newton at fixed parameter from the
     interpolation); None when it does not get there."""
@@ -609,6 +621,8 @@ def _through_folds(family: Family, pts: list, target: float, eps: float, folds: 
     turns = 0
     out = []
     for _ in range(max(budget, 1)):
+        if spent():
+            return None
         q = tr.advance(p, t)
         if q is None:
             return None
