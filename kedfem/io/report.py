@@ -64,7 +64,7 @@ def _larger(time_error, mesh_error):
     return max(time_error, mesh_error) if mesh_error is not None and math.isfinite(mesh_error) else time_error
 
 
-def members_text(mech) -> str:
+def _members_text(mech) -> str:
     """Which members are flexible (with their elements) and which rigid: a rigid and a stiff flexible
     member answer differently (a Whitworth's ram, 10 % in its elastic displacement)."""
     flex = [f"{lk.name} ({lk.elements} el.)" for lk in mech.flexible_links]
@@ -84,7 +84,7 @@ def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_di
     info = scene_summary(sc)
     L = []
     L.append(f"kedfem {__version__}: {sc.name or sc.mech.name}  [{source}]")
-    L.append(f"  mechanism   {info['mechanism']}: {res.model.n_dof} elastic DOFs; {members_text(sc.mech)}")
+    L.append(f"  mechanism   {info['mechanism']}: {res.model.n_dof} elastic DOFs; {_members_text(sc.mech)}")
     L.append(f"  speed       {info['speed']}")
     how = (f"tolerance {sc.rtol:g} on the peaks" if sc.steps is None else "steps given")
     L.append(f"  solver      {res.scheme}, {res.elements} time elements ({how}), "

@@ -11,8 +11,18 @@ __all__ = ["crank_angle_convention", "crank_angle_label"]
 
 
 def crank_angle_convention(mech) -> str:
-    """What the crank angles of a mechanism's results are, in words: a driven link's absolute
-    angle (its ``a -> b`` line from +x), or a driven body's rotation from the drawing."""
+    """What the crank angles of a mechanism's results are, in words.
+
+    Parameters
+    ----------
+    mech : Mechanism
+
+    Returns
+    -------
+    str
+        A driven link's absolute angle (its ``a -> b`` line from +x), or a driven body's
+        rotation from the drawing, naming the crank; ``"none (no drive)"`` without a drive.
+    """
     if not mech.drives:
         return "none (no drive)"
     d = mech.drives[0]
@@ -23,8 +33,19 @@ def crank_angle_convention(mech) -> str:
 
 
 def crank_angle_label(mech=None) -> str:
-    """An axis label for crank angles in degrees: ``"crank angle [deg] (crank 'c', absolute)"``,
-    ``"... (rotation of 'c' from the drawing)"``; without a mechanism ``"crank angle [deg]"``."""
+    """An axis label for crank angles in degrees that names the convention.
+
+    Parameters
+    ----------
+    mech : Mechanism, optional
+
+    Returns
+    -------
+    str
+        ``"crank angle [deg] ('c', absolute)"`` for a driven link ``c``, ``"crank angle [deg]
+        ('c', rotation from the drawing)"`` for a driven body; ``"crank angle [deg]"`` without a
+        mechanism or a drive.
+    """
     if mech is None or not mech.drives:
         return "crank angle [deg]"
     d = mech.drives[0]
