@@ -1,6 +1,7 @@
 """The ``kedfem`` command line: the default run end to end, every subcommand, clean errors."""
 
 import csv
+import json
 import dataclasses
 import os
 import re
@@ -55,6 +56,8 @@ def test_default_run_end_to_end(tmp_path):
                  "summary.txt", "kedfem-run.json"):
         assert (dest / name).is_file(), name
         assert name in text
+    manifest = json.loads((dest / "kedfem-run.json").read_text())  # the crank angles' convention, named
+    assert manifest["crank_angle"].startswith("of the crank 'eccentric_outer', absolute")
     with open(dest / "response.csv", newline="") as f:
         n_rows = sum(1 for _ in csv.DictReader(f))
     assert len(list((dest / "response").glob("*.vtu"))) == n_rows >= 360

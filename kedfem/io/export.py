@@ -60,6 +60,7 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from ..errors import InputError, KedError, OptionalDependencyError
+from ..motion.crank import crank_angle_convention
 
 __all__ = ["OptionalDependencyError", "require", "atomic_path", "write_response_csv", "write_peaks_csv",
            "write_frequencies_csv", "write_npz", "Part", "MechanismMesh", "mechanism_mesh", "auto_scale",
@@ -196,7 +197,8 @@ def write_frequencies_csv(freqs, path) -> Path:
 def write_npz(res, path, freqs=None) -> Path:
     """Compressed NumPy archive of the response (SI units).
 
-    Arrays: ``t``, ``crank_angle``, ``U``, ``V``, ``dof_labels``,
+    Arrays: ``t``, ``crank_angle`` (with ``crank_angle_convention``, its convention in
+    words), ``U``, ``V``, ``dof_labels``,
     ``floquet_multipliers``, ``stable``, ``converged``, ``iterations``,
     ``history``, ``residual``, and with ``freqs`` the ``modal``,
     ``state_space`` and ``damping_ratio`` frequencies with the mask
@@ -204,7 +206,8 @@ def write_npz(res, path, freqs=None) -> Path:
     NaN is written).
     """
     path = Path(path)
-    arrays = dict(t=res.t, crank_angle=res.crank_angle, U=res.U, V=res.V,
+    arrays = dict(t=res.t, crank_angle=res.crank_angle,
+                  crank_angle_convention=np.array(crank_angle_convention(res.model.mech)), U=res.U, V=res.V,
                   dof_labels=np.array(res.dof_labels, dtype=str),
                   floquet_multipliers=res.floquet_multipliers, stable=np.bool_(res.stable),
                   converged=np.bool_(res.converged), iterations=np.int64(res.iterations),

@@ -347,7 +347,7 @@ def write_result(res, out_dir, *, plots: bool = True, csv: bool = True, npz: boo
         with stage("mesh check"):
             mesh = mesh_error(res)
         mesh_note = "the comparison mesh's solve failed: see the warning above"
-    with RunFolder(out_dir, command, dict(scene=source)) as rf:
+    with RunFolder(out_dir, command, dict(scene=source, crank_angle=crank_angle_convention(res.model.mech))) as rf:
         staged = write_outputs(res, freqs, peaks, rf.path, stage, plots=plots, csv=csv, npz=npz, vtk=vtk,
                                render=render, modes=modes, scale=scale, every=every, dofs=tuple(dofs),
                                mesh=mesh, fatigue=table, loads=machine)
