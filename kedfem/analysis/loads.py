@@ -428,8 +428,7 @@ def _end_forces(result, link) -> dict:
         return np.concatenate([c * f[:, :1] - s * f[:, 1:], s * f[:, :1] + c * f[:, 1:]], axis=1)
 
     out = {(name, link.a): (glob(start[:, 0]), -M[:, 0, 0]), (name, link.b): (glob(end[:, -1]), M[:, -1, -1])}
-    for t in link.through:  # a pin inside: the ends of the two elements meeting at its node
-        i = link.node_of(t)
+    for t, i in zip(link.through, link.inner_nodes):  # a pin inside: the two elements meeting at its node
         out[(name, t)] = (glob(end[:, i - 1] + start[:, i]), M[:, i - 1, -1] - M[:, i, 0])
     return out
 

@@ -218,11 +218,10 @@ def _on_stations(X: np.ndarray, steps=(), larger: bool = False, sides: bool = Fa
     out[:, -1] = X[:, -1, k]
     if ne > 1:
         out[:, k:-1:k] = 0.5 * (X[:, :-1, k] + X[:, 1:, 0])
-    if larger:
-        for i in steps:
-            out[:, i * k] = np.maximum(X[:, i - 1, k], X[:, i, 0])
-    if sides and len(steps):
-        steps = np.asarray(steps, dtype=int)
+    steps = np.asarray(steps, dtype=int)
+    if larger and steps.size:
+        out[:, steps * k] = np.maximum(X[:, steps - 1, k], X[:, steps, 0])
+    if sides and steps.size:
         out[:, steps * k] = X[:, steps - 1, k]
         out = np.insert(out, steps * k + 1, X[:, steps, 0], axis=1)
     return out
@@ -488,7 +487,7 @@ class PeriodicResult:
         frac = np.arange(k) / k
         x = np.append((lk.nodes[:-1, None] + frac[None, :] * lk.element_lengths[:, None]).ravel(), lk.length)
         if sides:
-            steps = np.array([lk.node_of(t) for t in lk.through], dtype=int) * k
+            steps = np.array(lk.inner_nodes, dtype=int) * k
             x = np.insert(x, steps + 1, x[steps])
         return x
 
@@ -540,7 +539,7 @@ class PeriodicResult:
         v = d[:, e] @ N[1]
         if relative_to == "chord" and lk.through:  # the chord of the stretch between the pins around it
             x = xi * lk.length
-            cuts = (0.0,) + lk.through_at + (lk.length,)
+            cuts = lk.cuts
             k = int(min(np.searchsorted(cuts, x, side="right") - 1, len(cuts) - 2))
             f, c, _le = lk.segments()[k]
             u = (x - cuts[k]) / (cuts[k + 1] - cuts[k])
@@ -559,7 +558,7 @@ class PeriodicResult:
         its :meth:`deflection` at ``xi = 0.5`` relative to the chord.
         """
         lk = self._link(link)
-        cuts = (0.0,) + lk.through_at + (lk.length,)
+        cuts = lk.cuts
         return np.stack([self.deflection(lk.name, 0.5 * (cuts[k] + cuts[k + 1]) / lk.length, relative_to="chord")
                          for k in range(len(cuts) - 1)], axis=-1)
 
@@ -863,8 +862,7 @@ class PeriodicResult:
         """
         lk = self._link(link)
         M, N = self._forces(lk.name, _per_element(per_element))
-        steps = [lk.node_of(t) for t in lk.through]
-        return _on_stations(N, steps, sides=sides), _on_stations(M, steps, sides=sides)
+        return _on_stations(N, lk.inner_nodes, sides=sides), _on_stations(M, lk.inner_nodes, sides=sides)
 
     def stress(self, link: str, per_element: int = 1) -> np.ndarray:
         """Largest absolute normal stress ``|N|/A + |M| c / I`` at the stations (n, n_el per_element + 1) [Pa].
@@ -879,7 +877,7 @@ class PeriodicResult:
                              "so the bending stress is unknown (give Section(..., c=...))")
         M, N = self._forces(lk.name, _per_element(per_element))
         return _on_stations(np.abs(N) / sec.A + np.abs(M) * sec.c / sec.I,
-                            [lk.node_of(t) for t in lk.through], larger=True)
+                            lk.inner_nodes, larger=True)
 
     def link_geometry(self, link: str) -> np.ndarray:
         """Rigid-body positions (n, n_el + 1, 2) [m] of a flexible link's nodes over the cycle."""
@@ -1008,7 +1006,7 @@ class PeriodicResult:
             vals = one.stress(lk.name, per_element=PEAK_STATIONS * sub)[r]
             j = int(np.argmax(vals))
             v, dj = _vertex(vals, j)
-            if {j - 1, j, j + 1} & {lk.node_of(t) * PEAK_STATIONS * sub for t in lk.through}:
+            if {j - 1, j, j + 1} & {i * PEAK_STATIONS * sub for i in lk.inner_nodes}:
                 v, dj = float(vals[j]), 0.0  # the stress steps at a pin the link passes: no parabola across
             # an evaluation at the instant's vertex (the vertices in time and along the link
             # added together over-shoot a peak on a ridge that is not along the axes)

@@ -558,17 +558,14 @@ class Assembler:
         E = gm.E
         R = E if right is None else right
         nt = dK.shape[0]
-        parts = self._narrow_parts(gname, E.shape[-1])
-        for key, els, m in parts:  # each bucket at its own width (a block widens a few elements only)
-            Ek = E if len(parts) == 1 else E[:, els, :, :m]
-            Rk = R if len(parts) == 1 else R[:, els, :, :m]
+        for key, els, m in self._narrow_parts(gname, E.shape[-1]):  # each bucket at its own width
+            Ek, Rk = E[:, els, :, :m], R[:, els, :, :m]  # (a block widens a few elements only)
             Et = np.swapaxes(Ek, -1, -2)
             if Kx is not None:
-                Kk = Kx if len(parts) == 1 else Kx[:, els]
-                dK += self.model.scatter_matrix(key, np.broadcast_to(Et @ Kk @ Rk, (nt,) + (Ek.shape[1], m, m)))
+                dK += self.model.scatter_matrix(key, np.broadcast_to(Et @ Kx[:, els] @ Rk, (nt,) + (Ek.shape[1], m, m)))
             if Qx is not None:
-                Qk = Qx if len(parts) == 1 else Qx[:, els]
-                dQ += self.model.scatter_vector(key, np.broadcast_to((Et @ Qk[..., None])[..., 0], (nt,) + (Ek.shape[1], m)))
+                dQ += self.model.scatter_vector(key, np.broadcast_to((Et @ Qx[:, els, :, None])[..., 0],
+                                                                     (nt,) + (Ek.shape[1], m)))
 
     def _narrow_parts(self, gname: str, width: int) -> list:
         """``(key, elements, width)`` of a group's buckets (:meth:`FEModel.buckets`) when the whole
@@ -578,7 +575,7 @@ class Assembler:
         cache = self.__dict__.setdefault("_parts_cache", {})
         if (gname, width) not in cache:
             full = self.model._static_layout(gname)[0]
-            parts = [(gname, np.arange(full.shape[0]), width)]
+            parts = [(gname, slice(None), width)]
             buckets = self.model.buckets(gname)
             if len(buckets) > 1 and full.shape[1] == width:
                 cand = []

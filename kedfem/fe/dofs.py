@@ -342,6 +342,14 @@ class DofNumbering:
                 best, kmax = name, k
         return best
 
+    def _drive_rotation(self, drive) -> int:
+        """The elastic rotation of a driven flexible link at its ground joint: the shaft's twist
+        with a torsional stiffness, else fixed."""
+        label = f"{drive.member}.theta@{drive.ground_joint}"
+        if drive.torsional_stiffness is not None:
+            return self._add_rot(RotDof("free", label, (self._new_q(label),), drive.member))
+        return self._add_rot(RotDof("fixed", label, (), drive.member))
+
     def _end_rotation(self, lk, joint, k, clamp_groups):
         mech = self.mech
         jt = mech.joints[joint]
@@ -350,19 +358,15 @@ class DofNumbering:
         if drive is not None and drive.ground_joint == joint:
             if clamp_groups.get(joint, (None, None))[1] == lk.name:  # its welded group's (_build_beams)
                 return clamp_groups[joint][0]
-            if drive.torsional_stiffness is not None:
-                q = self._new_q(label)
-                return self._add_rot(RotDof("free", label, (q,), lk.name))
-            return self._add_rot(RotDof("fixed", label, (), lk.name))
+            return self._drive_rotation(drive)
         if jt.kind == "slot" and jt.rotation == "locked" and jt.on != lk.name:
             return self._add_rot(RotDof("slot", label, (), lk.name, slot=joint))
         if jt.kind == "slider" and jt.rotation == "locked":  # a crosshead
             return self._add_rot(RotDof("fixed", label, (), lk.name, None, offset=True))
-        clamped = (k is not None and lk.ends[k] == "clamp") or jt.welds(lk.name)
-        if not clamped:
+        welds = jt.welds(lk.name)  # else an end clamped to what the joint connects to
+        if not (welds or (k is not None and lk.ends[k] == "clamp")):
             q = self._new_q(label)
             return self._add_rot(RotDof("free", label, (q,), lk.name))
-        welds = jt.welds(lk.name)  # else an end clamped to what the joint connects to
         if jt.kind == "ground" and (jt.clamped or not welds):  # (not welded to members pinned there)
             return self._add_rot(RotDof("fixed", label, (), lk.name, None, offset=True))
         rigid_here = [m for m in mech.members_at(joint) if m in self.member_rot and (jt.welds(m) or not welds)]
@@ -393,12 +397,7 @@ class DofNumbering:
             jt, lk = mech.joints[d.ground_joint], mech.links.get(d.member)
             if lk is None or lk.rigid or jt.clamped or not jt.welds(d.member):
                 continue
-            label = f"{d.member}.theta@{d.ground_joint}"
-            if d.torsional_stiffness is not None:
-                rid = self._add_rot(RotDof("free", label, (self._new_q(label),), d.member))
-            else:
-                rid = self._add_rot(RotDof("fixed", label, (), d.member))
-            clamp_groups[d.ground_joint] = (rid, d.member)
+            clamp_groups[d.ground_joint] = (self._drive_rotation(d), d.member)
         self.link_nodes = {}  # unreduced flexible link -> (node point ids, node rotation ids)
         rows = {k: [] for k in ("link", "L", "EA", "EI", "rhoA", "GAs", "s1", "lumped", "timo")}
         ids = []
@@ -409,7 +408,7 @@ class DofNumbering:
             ne = lk.elements
             le = lk.length / ne
             lengths, nodes = lk.element_lengths, lk.nodes
-            inner = {lk.node_of(t): t for t in lk.through}  # mesh nodes at joints passed through
+            inner = dict(zip(lk.inner_nodes, lk.through))  # mesh nodes at joints passed through
             mat, sec = lk.material, lk.section
             first[lk.name] = len(rows["L"])
             count[lk.name] = ne

@@ -17,6 +17,7 @@ import logging
 import math
 import warnings
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import networkx as nx
 import numpy as np
@@ -172,6 +173,16 @@ class Link:
         js = (self.a,) + self.through + (self.b,)
         return tuple(zip(js[:-1], js[1:]))
 
+    @property
+    def cuts(self) -> tuple[float, ...]:
+        """Abscissae [m] from ``a`` of the stretches' ends: 0, the joints passed through, the length."""
+        return (0.0,) + self.through_at + (self.length,)
+
+    @property
+    def inner_nodes(self) -> tuple[int, ...]:
+        """The mesh nodes at the joints the link passes through, in ``through`` order."""
+        return tuple(f for f, _c, _le in self.segments()[1:])
+
     def segments(self) -> tuple[tuple[int, int, float], ...]:
         """The mesh's uniform stretches between the ends and the joints passed through.
 
@@ -184,12 +195,16 @@ class Link:
             elements go to the stretches in proportion to their lengths
             (largest remainders, at least one each).
         """
+        return self._segments
+
+    @cached_property
+    def _segments(self) -> tuple[tuple[int, int, float], ...]:
+        """:meth:`segments`, computed once (the fields are frozen)."""
         if not self.elements:
             return ()
-        cuts = (0.0,) + self.through_at + (self.length,)
-        lens = np.diff(cuts)
         if not self.through:
             return ((0, self.elements, self.length / self.elements),)
+        lens = np.diff(self.cuts)
         share = self.elements * lens / self.length
         n = np.maximum(np.floor(share).astype(int), 1)
         while n.sum() < self.elements:
@@ -211,10 +226,7 @@ class Link:
     @property
     def nodes(self) -> np.ndarray:
         """Abscissae (elements + 1,) of the mesh's nodes from joint ``a`` [m]."""
-        out, s0 = [], 0.0
-        for k, (_f, c, le) in enumerate(self.segments()):
-            s0 = 0.0 if k == 0 else self.through_at[k - 1]
-            out.append(s0 + np.arange(c) * le)
+        out = [s0 + np.arange(c) * le for s0, (_f, c, le) in zip(self.cuts, self.segments())]
         return np.concatenate(out + [[self.length]]) if self.elements else np.zeros(0)
 
     def node_of(self, joint: str) -> int:
@@ -223,9 +235,7 @@ class Link:
             return 0
         if joint == self.b:
             return self.elements
-        k = self.through.index(joint)
-        f, _c, _le = self.segments()[k + 1]
-        return f
+        return self.inner_nodes[self.through.index(joint)]
 
 
 @dataclass(frozen=True)
