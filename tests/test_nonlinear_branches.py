@@ -70,3 +70,29 @@ def test_the_command_line_exits_non_zero_and_writes_no_peaks(tmp_path):
     assert r.returncode != 0
     assert "no periodic response found at 350 rpm" in r.stderr and "Traceback" not in r.stderr
     assert not list(tmp_path.rglob("peaks.csv"))
+
+
+def test_newton_stops_on_the_rate_of_a_coarser_level():
+    """A finer level's Newton stops on a change whose successor the coarser level's rate predicts
+    below eps / 10, one solve early, and the response it returns is that close to the solution."""
+    from kedfem.analysis.pipeline import _Run
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        run = _Run(scene(200))
+        ti, coarse = run.problem(48)
+        c = coarse.solve(None, eps=1e-4, max_iter=30)
+        assert c.converged and c.rate is not None and c.predicted is None
+        ti, fine = run.problem(96)
+        x0 = c.discrete.at(ti)
+        quick = fine.solve(x0, eps=1e-4, max_iter=30, rate=c.rate)
+        plain = fine.solve(x0, eps=1e-4, max_iter=30)
+        ref = fine.solve(x0, eps=1e-9, max_iter=30)
+    assert quick.converged and plain.converged and ref.converged
+    # without a rate only a change below eps stops it; with one, a solve earlier
+    assert quick.predicted is not None and plain.predicted is None and plain.history[-1] <= 1e-4
+    assert quick.iterations == plain.iterations - 1 and quick.history == plain.history[:-1]
+    assert quick.history[-1] > 1e-4 and quick.predicted <= 1e-5
+    U, Uref = (s.discrete.at(ti)[0] for s in (quick, ref))
+    err = float(np.linalg.norm(U - Uref) / np.linalg.norm(Uref))
+    # the distance from the solution: below eps, and below the prediction (an upper estimate)
+    assert err <= 1e-4 and err <= quick.predicted, (err, quick.predicted)

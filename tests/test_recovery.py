@@ -108,7 +108,7 @@ def test_modal_damping_field_matches_the_eigenproblem_at_any_instant():
     p = preset("four_bar")
     sc = kf.Scene(mechanisms.build("four_bar"), effects=p.effects, damping=p.damping)
     run = pipeline._Run(sc)
-    field = run.damping_field()
+    field = run.damping_field(48)
     assert field.samples >= 64 and not field.constant
     t = np.random.default_rng(1).random(9) * sc.period
     asm = Assembler(run.model, run.cycle.at(t), (), damping=sc.damping)
@@ -118,7 +118,47 @@ def test_modal_damping_field_matches_the_eigenproblem_at_any_instant():
     # a time-invariant scene keeps its constant matrix exactly (the solvers' constant path)
     ex = kf.Scene(mechanisms.build("exciter"), effects=("inertia", "coupling", "springs"),
                   damping=kf.ModalDamping(0.02))
-    f2 = pipeline._Run(ex).damping_field()
+    f2 = pipeline._Run(ex).damping_field(48)
     assert f2.constant
     C = f2.at(np.array([0.0, 0.01, 0.02]))
     assert np.array_equal(C[0], C[1]) and np.array_equal(C[0], C[2])
+
+
+def test_piecewise_damping_field_settles_between_kinks_where_harmonics_do_not():
+    """A matrix field with kinks (|sin|: its slope jumps at 0 and T/2) against its closed form: the
+    trigonometric interpolant gives up, the Chebyshev pieces between the kinks meet their rtol."""
+    from kedfem.fe.modal_damping import DampingField, PiecewiseDampingField
+    T = 0.3
+    rng = np.random.default_rng(3)
+    S = [a @ a.T + 4 * np.eye(4) for a in rng.standard_normal((3, 4, 4))]
+
+    def exact(t):
+        f = np.abs(np.sin(2 * np.pi * np.asarray(t) / T))[:, None, None]
+        return S[0] + f * S[1] + np.exp(f) * S[2]
+
+    assert DampingField(exact, T, rtol=1e-7).samples == 0  # fell back to exact matrices
+    field = PiecewiseDampingField(exact, T, [0.0, T / 2], rtol=1e-7)
+    assert field.samples < 200 and field.degrees.min() > 0
+    t = np.concatenate([rng.random(50) * T, [0.0, T / 2, T - 1e-12, 1e-12]])
+    E = exact(t)
+    d = np.sqrt(np.einsum("tii->ti", E).max(axis=0))
+    assert np.max(np.abs(field.at(t) - E) / np.outer(d, d)) < 1e-6
+
+
+def test_piecewise_damping_field_of_a_sliding_block_matches_the_eigenproblem():
+    """The Whitworth's C(t), kinked where the block crosses the lever's nodes, read between the kinks
+    against an eigenproblem per instant, to a thousandth of the solve's rtol."""
+    from kedfem.analysis import pipeline
+    from kedfem.fe.assembler import Assembler
+    from kedfem.fe.modal_damping import PiecewiseDampingField
+    from kedfem.io.scenefile import preset
+    p = preset("whitworth")
+    sc = kf.Scene(mechanisms.build("whitworth"), effects=p.effects, damping=p.damping, rtol=1e-3)
+    run = pipeline._Run(sc)
+    field = run.damping_field(192)
+    assert isinstance(field, PiecewiseDampingField) and field.samples < 600
+    t = np.random.default_rng(1).random(40) * sc.period
+    asm = Assembler(run.model, run.cycle.at(t), (), damping=sc.damping)
+    exact = asm.damping_matrix(*asm.structural())
+    d = np.sqrt(np.abs(np.einsum("tii->ti", exact)).max(axis=0))
+    assert np.max(np.abs(field.at(t) - exact) / np.outer(d, d)) < 1e-6

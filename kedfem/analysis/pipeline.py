@@ -33,11 +33,12 @@ from ..fe.assembler import Assembler
 from ..fe.damping import ModalDamping
 from ..errors import AccuracyWarning, EffectWarning, InputError
 from ..motion.kinematics import Cycle, kinematics
-from ..fe.modal_damping import DampingField
+from ..fe.modal_damping import FIELD_RTOL, DampingField, PiecewiseDampingField
 from ..fe.slots import node_crossings
 from ..fe.effects.loads import idle_loads, load_breaks, load_force
 from ..motion.profiles import distinct_instants
 from ..fe.effects import unsimulated
+from ..solvers.nonlinear import PREDICT_FRACTION, PREDICT_MAX_CHANGE
 from ..solvers.threads import one_blas_thread
 from .plausibility import check_passive_links, check_result
 from .problem import PeriodicProblem, constant_or_sampled, snapped_edges
@@ -85,6 +86,9 @@ HISTORY_FREE_RHO = 0.5
 #: eigenproblem per instant; so does every level of a solve of several levels (the
 #: slider-crank at rtol 1e-4: 67 eigenproblems instead of 252 for levels 12/24/48)
 FIELD_INSTANTS = 256
+#: exact damping matrices a piece between two kinks of ``C(t)`` costs, about (degree 32 and its
+#: checks; :class:`kedfem.fe.modal_damping.PiecewiseDampingField`)
+PIECE_COST = 40
 #: a DOF is stiff for the exact split of the exponential holds when the links' axial
 #: stiffness carries at least this share of its diagonal stiffness at every instant
 AXIAL_SHARE = 0.9
@@ -128,6 +132,7 @@ class _Level:
     assembly: float
     solve: float
     caught: list
+    predicted: float | None = None  # Newton stopped on this predicted next change (see Solved)
 
 
 def solve(scene: Scene, progress: bool | None = None, *, start=None) -> PeriodicResult:
@@ -264,6 +269,7 @@ class _Run:
             self.stiff = share.min(axis=0) >= AXIAL_SHARE
         self.levels: list[_Level] = []
         self._field = None
+        self._rate = None  # Newton's rate on the last level that observed one (NewtonRate)
         self._bands = None
         self._stab_need, self._stab_f = 0, 0.0
         self._stab_loss = None  # n -> the most the scheme lowers ln(rho) on n elements
@@ -284,23 +290,37 @@ class _Run:
         self._more_levels = 0   # levels the forecast expects after the last one solved
         self.t_setup = time.perf_counter() - self.t0
 
-    def damping_field(self) -> DampingField | None:
-        """The scene's modal damping over the cycle (built once; None for other damping, and where
-        a block crosses the nodes of its link: ``C(t)`` has kinks there, which a trigonometric
-        interpolant does not settle on before 1024 samples, so the eigenproblems per instant
-        are cheaper; the oscillating cylinder spent 0.4 s of its 1.1 s on the attempt; a
-        Chebyshev interpolant between the kinks, tried, cost the Whitworth as much as it saved)."""
+    def damping_field(self, n: int) -> DampingField | PiecewiseDampingField | None:
+        """The scene's modal damping over the cycle (built once, when the first level on ``n``
+        elements asks; None for other damping).
+
+        Where a block crosses the nodes of its link, ``C(t)`` has kinks, which a trigonometric
+        interpolant does not settle on before 1024 samples: there it is a Chebyshev interpolant
+        between the kinks (:class:`PiecewiseDampingField`, to a thousandth of ``rtol``) when its
+        exact matrices, about :data:`PIECE_COST` per piece, are fewer than half of those of the
+        three levels from ``n`` (``7 s n``), else exact matrices at every instant (the
+        oscillating cylinder: 4 pieces against 12/24/48 elements).
+        """
         sc = self.scene
         self.breaks()
-        if not isinstance(sc.damping, ModalDamping) or self._node_breaks.size:
+        if not isinstance(sc.damping, ModalDamping):
             return None
         if self._field is None:
             def exact(t):
                 asm = Assembler(self.model, self.cycle.at(t), (), damping=sc.damping)
                 return asm.damping_matrix(*asm.structural())
 
-            self._field = DampingField(exact, sc.period)
-        return self._field
+            pieces = self._node_breaks.size
+            if not pieces:
+                self._field = DampingField(exact, sc.period)
+            elif PIECE_COST * pieces < 0.5 * 7 * self.scheme.stages * n:
+                rtol = 1e-3 * (sc.rtol if sc.rtol is not None else 1e-3)
+                self._field = PiecewiseDampingField(exact, sc.period, self._node_breaks, max(rtol, FIELD_RTOL))
+                log.info("%s: modal damping between %d kinks from %d exact matrices (degrees %s, check %.1e)",
+                         sc.mech.name, pieces, self._field.samples, self._field.degrees.tolist(), self._field.error)
+            else:
+                self._field = False  # exact matrices at every instant
+        return self._field or None
 
     # ---------------------------------------------------------------- levels
     def level(self, n: int, eps: float | None = None) -> _Level:
@@ -321,7 +341,9 @@ class _Run:
         x0 = prev.discrete.at(ti) if prob.state and prev is not None else None
         if prob.state and x0 is None and self.start is not None:
             x0 = phase_sample(self.start.sampler.discrete, ti, sc.period)
-        out = prob.solve(x0, eps=eps, max_iter=sc.max_iter, method=sc.nonlinear_method)
+        out = prob.solve(x0, eps=eps, max_iter=sc.max_iter, method=sc.nonlinear_method, rate=self._rate)
+        if out.converged and out.rate is not None:
+            self._rate = out.rate  # the finest level's Newton rate predicts the next level's changes
         if prob.state and not out.converged and sc.nonlinear_method == "newton" and n >= self._need:
             # a level that resolves the excited modes: continuation in speed (on a coarser one the
             # branch may turn where the finer ones run on; it is solved again from a finer level)
@@ -331,7 +353,7 @@ class _Run:
         td = time.perf_counter()
         d = out.discrete
         lv = _Level(n, d, out.converged, out.iterations, out.history, prob.kinematics, prob.assembly, td - tc,
-                    out.caught)
+                    out.caught, getattr(out, "predicted", None))
         log.info("%s: level n=%d (%s) %d iteration(s) rho=%.4g %.3f s", sc.mech.name, n, scheme.name,
                  out.iterations, d.spectral_radius, prob.kinematics + prob.assembly + td - tc)
         self.levels.append(lv)
@@ -372,7 +394,7 @@ class _Run:
         edges = snapped_edges(n, self.scene.period, self.breaks()) if self.scheme.graded else None
         ti = self.scheme.instants(n, self.scene.period, edges)
         several = self.scene.steps is None or self.scene.estimate
-        field = self.damping_field() if (ti.size >= FIELD_INSTANTS or several) else None
+        field = self.damping_field(n) if (ti.size >= FIELD_INSTANTS or several) else None
         return ti, PeriodicProblem(self.scene, self.model, self.cycle, self.scheme, n, damping_field=field,
                                    stiff=self.stiff, edges=edges, kinks=self.breaks() if edges is not None else None)
 
@@ -514,19 +536,22 @@ class _Run:
 
         The refinement doubles until three levels agree and the finest resolves the modes the drive
         excites (``need`` elements) and, unless the verdict is beyond doubt, the stability floor.
-        A level on ``n`` elements costs ``a + b n`` (kinematics, assembly and solve) through the
-        last two levels, or ``b n`` from the first alone (which errs long: a few elements also
-        carry costs that do not grow with ``n``), plus the read-out of its peaks for the
-        estimate, as measured or, before any, :data:`READ_SHARE` of the last level. The whole
-        solve's time is the geometric mean of ending there and of ending a level later.
+        A level on ``n`` elements costs its kinematics and assembly, ``a + b n``, and its linear
+        solves, as many as :meth:`_next_iterations` expects at ``c + d n`` each, both through the
+        last two levels (:meth:`_cost_model`; the Whitworth with geometric non-linearity took
+        3, 2, 1, 1 solves on its levels, and a forecast per level was 2.9x long), plus the
+        read-out of its peaks for the estimate, as measured or, before any, :data:`READ_SHARE`
+        of the last level. The whole solve's time is the geometric mean of ending there and of
+        ending a level later.
         """
         lv = self.levels[-1]
-        cost = [x.kinematics + x.assembly + x.solve for x in self.levels[-2:]]
-        per, fixed = cost[-1] / lv.n, 0.0
-        if len(cost) == 2 and self.levels[-2].n < lv.n:  # a level's cost a + b n, through the last two
-            per = max((cost[1] - cost[0]) / (lv.n - self.levels[-2].n), 0.0)
-            fixed = max(cost[1] - per * lv.n, 0.0)
-        read = (self._t_read / len(self._obs)) if self._obs else READ_SHARE * cost[0]
+        last = self.levels[-2:]
+        setup = self._cost_model([x.kinematics + x.assembly for x in last], [x.n for x in last])
+        one = self._cost_model([x.solve / max(x.iterations, 1) for x in last], [x.n for x in last])
+        its = self._next_iterations()
+        read = (self._t_read / len(self._obs)) if self._obs else READ_SHARE * (
+            last[0].kinematics + last[0].assembly + last[0].solve)
+        fixed, per = setup[0] + its * one[0], setup[1] + its * one[1]
         target = self.forecast_elements(need)
         left, n, more = 0.0, lv.n, 0
         while n < target:
@@ -545,23 +570,51 @@ class _Run:
             left = math.sqrt((spent + left) * (spent + left + fixed + per * n + read)) - spent
         return left
 
+    @staticmethod
+    def _cost_model(cost, n) -> tuple[float, float]:
+        """``(a, b)`` of a cost ``a + b n`` through the last two levels' ``cost`` at ``n`` elements
+        (``b n`` alone from one level, which errs long: a few elements also carry costs that do
+        not grow with ``n``)."""
+        if len(cost) == 2 and n[0] < n[1]:
+            per = max((cost[1] - cost[0]) / (n[1] - n[0]), 0.0)
+            return max(cost[1] - per * n[1], 0.0), per
+        return 0.0, cost[-1] / n[-1]
+
+    def _next_iterations(self) -> int:
+        """Linear solves a finer level is likely to take: 1 for a linear scene; for Newton, 1 when
+        the rate observed so far predicts the change after its first below the stopping level
+        (:func:`kedfem.solvers.nonlinear.newton`), the first taken as half of the last level's
+        (the difference between levels shrinks 2-20x per doubling), else 2."""
+        lv = self.levels[-1]
+        if lv.iterations <= 1 and not lv.history:
+            return 1
+        sc = self.scene
+        eps = max(sc.eps, COARSE_EPS * sc.rtol) if sc.rtol is not None else sc.eps
+        first = 0.5 * lv.history[0] if lv.history and len(self.levels) > 1 else math.inf
+        if self._rate is not None and first <= PREDICT_MAX_CHANGE and \
+                self._rate.predict(first) <= PREDICT_FRACTION * eps:
+            return 1
+        return 2
+
     def finish(self) -> None:
         """Iterate the last level on to the scene's ``eps`` if it was solved looser."""
         if self._continue is None:
             return
         sc = self.scene
         prob, out = self._continue
-        if out.converged and out.history and out.history[-1] <= sc.eps:
+        if out.converged and out.history and (out.history[-1] <= sc.eps or (
+                out.predicted is not None and out.predicted <= PREDICT_FRACTION * sc.eps)):
             # its last change already meets the scene's eps: the iteration run at eps would have
             # stopped on the same iterate (a Newton step of 8e-7 then costs no fifth solve)
             self._continue = None
             return
         lv = self.levels[-1]
         t0 = time.perf_counter()
-        out = prob.polish(out, eps=sc.eps, max_iter=sc.max_iter)
+        out = prob.polish(out, eps=sc.eps, max_iter=sc.max_iter, rate=self._rate)
         self.levels[-1] = dataclasses.replace(
             lv, discrete=out.discrete, converged=out.converged, iterations=out.iterations,
-            history=out.history, solve=lv.solve + time.perf_counter() - t0, caught=out.caught)
+            history=out.history, solve=lv.solve + time.perf_counter() - t0, caught=out.caught,
+            predicted=out.predicted)
         i = len(self.levels) - 1
         self._obs = {k: v for k, v in self._obs.items() if k[0] != i}
         self._continue = None
@@ -845,7 +898,7 @@ class _Run:
             tuple(self.model.dof_labels), d.floquet_multipliers, stable, lv.converged,
             lv.iterations, lv.history, float(d.residual), Timings(0.0, 0.0, 0.0, 0.0), d.method,
             elements=lv.n, scheme=self.scheme.name, error=error, sampler=Sampler(self.cycle, d),
-            stability=stability)
+            stability=stability, predicted_change=lv.predicted)
         for (_i, n), (level, cache_read) in list(self._read.items()):
             if n == n_out and level is lv:  # this level on these instants was read for the estimate
                 res._cache.update(cache_read)

@@ -58,6 +58,11 @@ class Solved:
         The non-linear method that produced it (``""`` for a linear problem).
     caught : list
         Warnings raised while solving (re-issued by the caller for the result it keeps).
+    rate : kedfem.solvers.nonlinear.NewtonRate or None
+        Newton's rate observed at the end (for a finer level's :meth:`PeriodicProblem.solve`).
+    predicted : float or None
+        Newton stopped on a predicted next change, this one (relative), instead of a last change
+        below ``eps`` (see :func:`kedfem.solvers.nonlinear.newton`).
     """
 
     discrete: object
@@ -66,6 +71,8 @@ class Solved:
     history: tuple
     method: str
     caught: list
+    rate: object = None
+    predicted: float | None = None
 
 
 class _Chunks:
@@ -320,7 +327,7 @@ class PeriodicProblem:
         r = collocation.residual(terms.M, Ct, Kt, Qt, U, V, self.period, self.scheme.name, edges=self.edges)
         return float(np.linalg.norm(np.einsum("tij,tj->ti", self._D, r) if self._D.ndim == 3 else r @ self._D.T))
 
-    def solve(self, x0=None, *, eps: float, max_iter: int, method: str = "newton") -> Solved:
+    def solve(self, x0=None, *, eps: float, max_iter: int, method: str = "newton", rate=None) -> Solved:
         """The periodic response: linear, or iterated from ``x0`` (default the linear response).
 
         Parameters
@@ -334,6 +341,9 @@ class PeriodicProblem:
         method : {"newton", "fixed-point", "relaxation", "anderson"}
             ``"fixed-point"`` falls back to Anderson when it diverges
             (:func:`kedfem.solvers.nonlinear.fixed_point_or_anderson`).
+        rate : kedfem.solvers.nonlinear.NewtonRate, optional
+            Newton's rate on a coarser level of the same problem: Newton may stop on the next
+            change it predicts (:func:`kedfem.solvers.nonlinear.newton`).
 
         Returns
         -------
@@ -344,22 +354,28 @@ class PeriodicProblem:
             if not self.state:
                 return Solved(self.linear(), True, 1, (), "", list(caught))
             merit = self.merit if self.has_residual else None
+            if method == "newton":
+                out = newton(self.step, self.instants.size, self.N, self.period, eps=eps, max_iter=max_iter,
+                             x0=x0, merit=merit, rate=rate)
+                return Solved(out.solution, bool(out.converged), len(out.history),
+                              tuple(float(h) for h in out.history), method, list(caught), out.rate, out.predicted)
             d, hist, converged, used = fixed_point_or_anderson(
                 self.step, self.instants.size, self.N, self.period, eps=eps, max_iter=max_iter, method=method,
                 x0=x0, merit=merit)
         return Solved(d, bool(converged), len(hist), tuple(float(h) for h in hist), used, list(caught))
 
-    def polish(self, solved: Solved, *, eps: float, max_iter: int) -> Solved:
-        """Iterate a solve on to a tighter ``eps`` from where it stopped."""
+    def polish(self, solved: Solved, *, eps: float, max_iter: int, rate=None) -> Solved:
+        """Iterate a solve on to a tighter ``eps`` from where it stopped (``rate`` as :meth:`solve`)."""
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             x0 = solved.discrete.instant_states()
             if solved.method == "newton":
-                d, hist, conv, _m = newton(self.step, self.instants.size, self.N, self.period, eps=eps,
-                                           max_iter=max_iter, x0=x0,
-                                           merit=self.merit if self.has_residual else None)
-            else:
-                d, hist, conv, _m = fixed_point(self.step, self.instants.size, self.N, self.period, eps=eps,
-                                                max_iter=max_iter, method=solved.method, x0=x0)
+                out = newton(self.step, self.instants.size, self.N, self.period, eps=eps, max_iter=max_iter,
+                             x0=x0, merit=self.merit if self.has_residual else None, rate=rate)
+                return Solved(out.solution, bool(out.converged), solved.iterations + len(out.history),
+                              solved.history + tuple(float(h) for h in out.history), solved.method,
+                              list(caught), out.rate or solved.rate, out.predicted)
+            d, hist, conv, _m = fixed_point(self.step, self.instants.size, self.N, self.period, eps=eps,
+                                            max_iter=max_iter, method=solved.method, x0=x0)
         return Solved(d, bool(conv), solved.iterations + len(hist),
                       solved.history + tuple(float(h) for h in hist), solved.method, list(caught))

@@ -367,6 +367,11 @@ class PeriodicResult:
         ("reached by continuation in speed from 175 rpm ..."); empty otherwise.
     periods : int
         Drive cycles per period of the response (1; 2 for a period-doubled response).
+    predicted_change : float or None
+        Newton stopped on a last change whose next one its rate (observed on a coarser level)
+        predicts below a tenth of ``eps``: that prediction, the response's distance from the
+        iteration's solution (relative); None when the last change itself met ``eps``
+        (:func:`kedfem.solvers.nonlinear.newton`).
     """
 
     scene: object
@@ -392,6 +397,7 @@ class PeriodicResult:
     stability: Stability | None = None
     path: str = ""
     periods: int = 1
+    predicted_change: float | None = None
     # not an init field: dataclasses.replace(res, U=...) gets an empty cache, not the old
     # result's deflections and stresses
     _cache: dict = field(default_factory=dict, init=False, repr=False, compare=False)

@@ -30,10 +30,12 @@ import math
 from typing import Callable
 
 import numpy as np
+from scipy import fft
 
 from ..solvers.eigen import generalised_eigh
 
-__all__ = ["modal_damping", "DampingField", "FIELD_RTOL", "MAX_SAMPLES"]
+__all__ = ["modal_damping", "DampingField", "PiecewiseDampingField", "FIELD_RTOL", "MAX_SAMPLES",
+           "PIECE_POINTS"]
 
 log = logging.getLogger(__name__)
 
@@ -48,6 +50,8 @@ FIRST_SAMPLES = 32
 MAX_SAMPLES = 1024
 #: instants between the samples where the accepted interpolant is checked
 CHECKS = 3
+#: first and largest Chebyshev degrees per piece of :class:`PiecewiseDampingField`
+PIECE_POINTS = (8, 64)
 
 
 def modal_damping(M: np.ndarray, K: np.ndarray, zeta: float, name: str = "",
@@ -201,3 +205,155 @@ class DampingField:
         if self._coef is None:
             return self._exact(t)
         return self._interpolate(t)
+
+
+class PiecewiseDampingField:
+    """Modal damping ``C(t)`` over a cycle with kinks: a Chebyshev interpolant between them.
+
+    Where a block crosses a node of its link, the mass and stiffness it adds follow the
+    shape functions of another element: ``C(t)`` has a kink there, and its trigonometric
+    interpolant (:class:`DampingField`) does not settle before 1024 samples (the Whitworth's
+    harmonics stayed above 1e-6 of the entries' scale). Between two kinks it is smooth: each
+    piece gets the Chebyshev series through the exact matrices at the Chebyshev-Lobatto points
+    of the piece, of degree :data:`PIECE_POINTS` ``[0]`` doubled (the points nest) until the
+    top quarter of its coefficients falls below ``rtol`` of each entry's scale
+    ``sqrt(C_ii C_jj)``, or to exact matrices on that piece beyond ``PIECE_POINTS[1]``. The
+    accepted series are checked against exact matrices at two instants per piece.
+
+    A relative error ``e`` of the damping matrix moves the response by at most about ``e``
+    (at a resonance the response is inversely proportional to the damping, elsewhere less), so
+    ``rtol`` is set a thousandth of the solve's tolerance by the caller.
+
+    Parameters
+    ----------
+    exact : callable
+        ``exact(t)`` -> ndarray (k, N, N): the exact matrices at instants ``t`` (k,) [s].
+    period : float
+        Cycle [s].
+    breaks : array_like of float, shape (b,)
+        Instants of the kinks [s] in ``[0, period)``, at least one.
+    rtol : float
+        Acceptance level of the top coefficients (and of the check).
+
+    Attributes
+    ----------
+    samples : int
+        Exact matrices evaluated to build it (the checks included).
+    degrees : ndarray of int, shape (b,)
+        Degree per piece (0 for a piece read from exact matrices).
+    error : float
+        Largest difference between the series and exact matrices at the check instants,
+        relative to each entry's scale.
+    constant : bool
+        Always False (the interface of :class:`DampingField`).
+    """
+
+    constant = False
+
+    def __init__(self, exact: Callable[[np.ndarray], np.ndarray], period: float, breaks, rtol: float):
+        self._exact = exact
+        self.period = T = float(period)
+        b = np.unique(np.mod(np.asarray(breaks, dtype=float), T))
+        if b.size == 0:
+            raise ValueError("PiecewiseDampingField needs at least one break")
+        self._starts = b
+        self._ends = np.append(b[1:], b[0] + T)
+        self.samples = 0
+        lo, hi = PIECE_POINTS
+        first = exact(np.array([b[0]]))[0]
+        N = first.shape[0]
+        self._iu = np.triu_indices(N)
+        coefs, degrees, checks = [], [], []
+        scale = None
+        for a, z in zip(self._starts, self._ends):
+            p = lo
+            C = exact(np.mod(self._points(a, z, p), T))
+            self.samples += p + 1
+            while True:
+                if scale is None:
+                    scale = DampingField._scale(C)[self._iu]
+                c = self._coefficients(C[:, self._iu[0], self._iu[1]], p)
+                tail = float((np.abs(c[-max(1, p // 4):]).max(axis=0) / scale).max())
+                if tail <= rtol or 2 * p > hi:
+                    break
+                # the Lobatto points of degree 2p: those of degree p and the midpoints between them
+                mid = exact(np.mod(self._points(a, z, 2 * p)[1::2], T))
+                self.samples += p
+                both = np.empty((2 * p + 1,) + C.shape[1:])
+                both[0::2], both[1::2] = C, mid
+                C, p = both, 2 * p
+            if tail <= rtol:
+                coefs.append(c)
+                degrees.append(p)
+                checks.append(a + np.array([0.31, 0.77]) * (z - a))
+            else:
+                log.info("modal damping: piece [%.6g, %.6g] s does not settle (top coefficients %.1e of "
+                         "the scale at degree %d): exact matrices there", a, z, tail, p)
+                coefs.append(None)
+                degrees.append(0)
+        self._coefs = coefs
+        self.degrees = np.array(degrees, dtype=int)
+        self.error = 0.0
+        if checks:
+            tc = np.concatenate(checks)
+            E = exact(np.mod(tc, T))
+            self.samples += tc.size
+            diff = np.abs(self._interpolate(tc)[:, self._iu[0], self._iu[1]] - E[:, self._iu[0], self._iu[1]])
+            self.error = float((diff / scale).max())
+            if self.error > 10.0 * rtol:
+                log.info("modal damping: piecewise interpolant %.1e off the exact matrices; exact matrices "
+                         "at every instant instead", self.error)
+                self._coefs = [None] * len(coefs)
+                self.degrees[:] = 0
+        log.debug("modal damping: %d pieces, degrees %s, %d exact matrices, check %.1e", b.size,
+                  self.degrees.tolist(), self.samples, self.error)
+
+    @staticmethod
+    def _points(a: float, z: float, p: int) -> np.ndarray:
+        """Chebyshev-Lobatto points of degree ``p`` on ``[a, z]``, from ``z`` down to ``a``."""
+        x = np.cos(np.pi * np.arange(p + 1) / p)
+        return a + 0.5 * (x + 1.0) * (z - a)
+
+    @staticmethod
+    def _coefficients(values: np.ndarray, p: int) -> np.ndarray:
+        """Chebyshev coefficients (p + 1, E) of the values (p + 1, E) at the Lobatto points (DCT-I)."""
+        c = fft.dct(values, type=1, axis=0) / p
+        c[0] *= 0.5
+        c[-1] *= 0.5
+        return c
+
+    def _piece(self, t: np.ndarray) -> np.ndarray:
+        """Index of the piece of each instant (k,)."""
+        b = self._starts
+        tt = np.mod(t, self.period)
+        return np.searchsorted(b, tt, side="right") - 1  # -1: before the first break, the last piece
+
+    def _interpolate(self, t) -> np.ndarray:
+        t = np.asarray(t, dtype=float)
+        piece = self._piece(t)
+        i, j = self._iu
+        N = int(i.max()) + 1
+        out = np.empty((t.size, N, N))
+        T = self.period
+        piece[piece < 0] = len(self._coefs) - 1  # before the first break: the last piece, wrapped
+        for k, c in enumerate(self._coefs):  # a loop over the pieces (the kinks), not the instants
+            sel = np.flatnonzero(piece == k)
+            if sel.size == 0:
+                continue
+            if c is None:
+                out[sel] = self._exact(np.mod(t[sel], T))
+                continue
+            a, z = self._starts[k], self._ends[k]
+            tk = np.mod(t[sel], T)
+            tk = np.where(tk < a, tk + T, tk)  # the last piece runs past the period's end
+            x = np.clip(2.0 * (tk - a) / (z - a) - 1.0, -1.0, 1.0)
+            vals = np.polynomial.chebyshev.chebvander(x, c.shape[0] - 1) @ c
+            block = np.empty((sel.size, N, N))
+            block[:, i, j] = vals
+            block[:, j, i] = vals
+            out[sel] = block
+        return out
+
+    def at(self, t) -> np.ndarray:
+        """``C`` at instants ``t`` (k,) [s], shape (k, N, N) [N s/m]."""
+        return self._interpolate(np.asarray(t, dtype=float))

@@ -167,6 +167,8 @@ def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_di
         L.append(f"Floquet stability   spectral radius {rho:.6g} -> {'stable' if res.stable else 'UNSTABLE'}")
     if sc.state_dependent:
         last = f", last change {res.history[-1]:.2e}" if res.history else ""
+        if res.history and res.predicted_change is not None:
+            last += f", the next predicted below {res.predicted_change:.1e} by Newton's rate"
         L.append(f"iteration           {res.iterations} linear solves ({sc.nonlinear_method}), converged: "
                  f"{'yes' if res.converged else 'NO'} (eps {sc.eps:g}{last})")
         if res.path:
