@@ -291,8 +291,9 @@ class _Elements:
     (instant ``k s + j`` is stage ``j`` of element ``k``).
     """
 
-    def __init__(self, tab: Tableau, Ms, Cs, Ks, Qs, n, N, period, workers, edges=None):
+    def __init__(self, tab: Tableau, Ms, Cs, Ks, Qs, n, N, period, workers, edges=None, check_mass=True):
         self.tab = tab
+        self.check_mass = check_mass
         self.Ms, self.Cs, self.Ks, self.Qs = Ms, Cs, Ks, Qs
         self.n, self.N, self.m = n, N, 2 * N
         self.h = np.full(n, period / n) if edges is None else np.diff(np.asarray(edges, float))
@@ -309,7 +310,7 @@ class _Elements:
 
     def _data(self, a, b):
         s, N = self.tab.s, self.N
-        idx = np.arange(a * s, b * s)
+        idx = slice(a * s, b * s)
         L = b - a
 
         def get(src):
@@ -367,19 +368,27 @@ class _Elements:
             Xq = sla.lu_solve(lu, Q.reshape(L, s * N).T).T
             X = np.concatenate([np.broadcast_to(XR, (L, s * N, 2 * N)), Xq[:, :, None]], axis=2)
         else:
-            if M.ndim == 2:
+            if not self.check_mass:
+                pass
+            elif M.ndim == 2:
                 _check_mass(M, np.array([0]))
             else:
                 _check_mass(M.reshape((L * s, N, N)), np.arange(a * s, b * s))
             X = np.empty((L, s * N, 2 * N + 1))
             Mb, Cb, Kb = (np.broadcast_to(X_, (L, s, N, N)) if X_.ndim == 2 else X_ for X_ in (M, C, K))
-            R = self._R(Cb, Kb, h)
+            hc = h[:, None, None, None] * tab.c[None, :, None, None]
 
             def work(i, lo, hi):
                 W = self._W(Mb[lo:hi], Cb[lo:hi], Kb[lo:hi], h[lo:hi])
-                rhs = np.concatenate([R[lo:hi].reshape(hi - lo, s * N, 2 * N),
-                                      Q[lo:hi].reshape(hi - lo, s * N, 1)], axis=2)
-                X[lo:hi] = np.linalg.solve(W, rhs)
+                # [-R | q] written in place: -R_j = -[K_j, C_j + h c_j K_j] (see _R)
+                rhs = np.empty((hi - lo, s, N, 2 * N + 1))
+                np.negative(Kb[lo:hi], out=rhs[..., :N])
+                right = rhs[..., N:2 * N]
+                np.multiply(hc[lo:hi], Kb[lo:hi], out=right)
+                right += Cb[lo:hi]
+                np.negative(right, out=right)
+                rhs[..., 2 * N] = Q[lo:hi]
+                X[lo:hi] = np.linalg.solve(W, rhs.reshape(hi - lo, s * N, 2 * N + 1))
 
             _run_parallel(work, _split(L, self.workers))
         if self.keep_ops:
@@ -390,9 +399,11 @@ class _Elements:
         """Transitions ``(P (L, 2N, 2N), p (L, 2N))`` of elements ``a..b-1``."""
         tab, N, s = self.tab, self.N, self.tab.s
         h = self.h[a:b]
-        X = self._ops(a, b).reshape(b - a, s, N, 2 * N + 1)
-        du = np.einsum("l,j,ljnk->lnk", h * h, tab.bA, X)
-        dv = np.einsum("l,j,ljnk->lnk", h, tab.b, X)
+        X = self._ops(a, b).reshape(b - a, s, N * (2 * N + 1))
+        # the stage sums b A a and b a of every element in one batched product
+        Y = np.matmul(np.stack([tab.bA, tab.b]), X).reshape(b - a, 2, N, 2 * N + 1)
+        du = (h * h)[:, None, None] * Y[:, 0]
+        dv = h[:, None, None] * Y[:, 1]
         P = np.concatenate([du[..., :2 * N], dv[..., :2 * N]], axis=1)
         P[:, np.arange(N), np.arange(N)] += 1.0
         P[:, np.arange(N), N + np.arange(N)] += h[:, None]
@@ -506,7 +517,8 @@ def _resolve(name, Ms, Cs, Ks, Qs, n, s):
 
 def solve(M, C, K, Q, period: float, scheme: str = "radau3", *, n: int | None = None,
           edges=None, method: str = "auto", memory_budget: float = 256e6,
-          max_condition: float = MAX_CONDITION, workers: int | None = None) -> CollocationSolution:
+          max_condition: float = MAX_CONDITION, workers: int | None = None,
+          check_mass: bool = True) -> CollocationSolution:
     """Periodic steady state of ``M u'' + C u' + K u = Q`` by collocation time elements.
 
     Parameters
@@ -527,6 +539,10 @@ def solve(M, C, K, Q, period: float, scheme: str = "radau3", *, n: int | None = 
         elements; default ``k T / n``).
     method, memory_budget, max_condition, workers
         As in :func:`kedfem.solvers.periodic.solve`.
+    check_mass : bool
+        Check that ``M`` is positive definite at every instant (a Cholesky factorisation each);
+        False for a caller that solved with the same ``M`` before (the iterations of a
+        non-linear solve).
 
     Returns
     -------
@@ -557,7 +573,7 @@ def solve(M, C, K, Q, period: float, scheme: str = "radau3", *, n: int | None = 
                 or abs(edges[0]) > 1e-12 * period or abs(edges[-1] - period) > 1e-12 * period:
             raise InputError(f"edges must be {n + 1} increasing instants from 0 to the period "
                              f"{period:.6g} s, got shape {edges.shape}")
-    elems = _Elements(tab, Ms, Cs, Ks, Qs, n, N, period, int(workers), edges)
+    elems = _Elements(tab, Ms, Cs, Ks, Qs, n, N, period, int(workers), edges, check_mass=bool(check_mass))
     ops_bytes = n * s * N * (2 * N + 1) * 8
     elems.keep_ops = ops_bytes <= memory_budget / 4
     per_element = 8.0 * (3 * (s * N) ** 2 + 4 * s * N * (2 * N + 1) + 3 * s * N * N)

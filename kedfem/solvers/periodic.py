@@ -218,12 +218,15 @@ class _Source:
             return None
         return self.value.shape[-1]
 
-    def get(self, idx: np.ndarray, N: int) -> np.ndarray:
-        """Values at node indices ``idx``: (len, N, N) / (len, N), or (N, N) if constant."""
+    def get(self, idx: np.ndarray | slice, N: int) -> np.ndarray:
+        """Values at node indices ``idx`` (an array, or a slice of consecutive nodes: a view of
+        sampled data, not a copy): (len, N, N) / (len, N), or (N, N) if constant."""
         if self.const:
             return self.value
         if not self.callable:
             return self.value[idx]
+        if isinstance(idx, slice):
+            idx = np.arange(idx.start, idx.stop)
         out = np.asarray(self.value(idx), dtype=float)
         want = (len(idx), N, N) if self.matrix else (len(idx), N)
         if out.shape != want:
