@@ -79,6 +79,13 @@ def cases(quick: bool):
                                          dict(effects=LINEAR, damping=kf.ModalDamping(0.005), speed=100 * RPM)),
         "six_bar 450 rpm": (mechanisms.build("six_bar"), dict(effects=LINEAR, damping=z2, speed=450 * RPM)),
     })
+    # the catalogue's sliding pairs at their presets (a block on a flexible link: kinks in time
+    # where it crosses the link's nodes, element edges there)
+    for name, build in (("whitworth", {}), ("inverted_slider_crank", {}),
+                        ("oscillating cylinder", dict(cylinder=True))):
+        key = "inverted_slider_crank" if build else name
+        pre = preset(key)
+        out[name] = (mechanisms.build(key, **build), dict(effects=pre.effects, damping=pre.damping))
     for name, (build, eff, damp) in linkages.CASES.items():
         out[name + "*"] = (build(), dict(effects=eff, damping=damp))
     # process loads (examples/): kinks where the tool meets and leaves the part

@@ -16,10 +16,11 @@ order 4) are credited the observed rate up to that order; levels before it
 (irregular convergence: the error of a badly resolved resonance can stall or
 change sign, then drop 20-50x at the next doubling) only up to the scheme's
 conservative ``assumed_rate`` and at least 1, which over-estimates rather
-than under-estimates. A tolerance-driven solve stops only on levels in the
+than under-estimates. A tolerance-driven solve stops on levels in the
 asymptotic range, where the estimate is within a small factor of the truth
 (``benchmarks/error_estimate.py``: 0.35 .. 7 on the catalogue and four
-linkages outside it at the default tolerance). With two levels the rate is
+linkages outside it at the default tolerance), or before it on an estimate far
+inside the tolerance (:data:`SETTLED_FRACTION`, :data:`CLEAR_FRACTION`). With two levels the rate is
 the scheme's ``assumed_rate``. Errors are relative: a peak's to the peak, a
 history's (the largest difference over the cycle) to the history's own peak.
 """
@@ -34,7 +35,7 @@ import numpy as np
 from ..errors import InputError
 
 __all__ = ["LinkError", "ErrorEstimate", "Observables", "estimate", "ASSUMED_RATE", "SAFETY",
-           "ASYMPTOTIC_FRACTION", "HISTORY_FRACTION", "SETTLED_FRACTION"]
+           "ASYMPTOTIC_FRACTION", "HISTORY_FRACTION", "SETTLED_FRACTION", "CLEAR_FRACTION"]
 
 #: Factor on every estimate: two levels whose errors have opposite signs differ
 #: by less than the coarser one's error, which the rate alone does not see
@@ -51,6 +52,13 @@ ASYMPTOTIC_FRACTION = 0.625
 #: slider-crank with a flexible crank and rod; costs nothing on the
 #: estimate study's 52 cases).
 HISTORY_FRACTION = 0.5
+#: Three levels before the asymptotic range whose peaks' estimate (at most the assumed rate) is
+#: below this fraction of ``rtol``, and whose histories converge (observed rate at least 1), meet
+#: it clearly: the estimate may be off by the 5x the history rate guards against (the offset
+#: slider-crank below) and still be 20x inside. The Whitworth at rtol 1e-3: peaks 9e-6 on
+#: 96/192/384, histories converging at rate 1.8 (below the 2 that asymptotic asks), refined to
+#: 768 elements for a peak error of 3e-7.
+CLEAR_FRACTION = 0.01
 #: Three levels whose two differences (peaks and histories, times :data:`SAFETY`)
 #: both stay below this fraction of ``rtol`` have settled: their rate is read-out
 #: noise (a linkage at 1 rpm, whose response is the static one: differences of
@@ -164,6 +172,10 @@ class ErrorEstimate:
     settled : bool
         Both differences of the three levels are below :data:`SETTLED_FRACTION`
         of ``rtol``: met whatever their rate (an over-estimate).
+    clear : bool
+        Before the asymptotic range, the peaks' estimate (credited at most the assumed rate)
+        is below :data:`CLEAR_FRACTION` of ``rtol`` and every history converges (observed
+        rate at least 1): met with a margin that a resonance still being resolved does not eat.
     """
 
     links: tuple[LinkError, ...]
@@ -175,6 +187,7 @@ class ErrorEstimate:
     resolved: bool = True
     asymptotic: bool = False
     settled: bool = False
+    clear: bool = False
 
     @property
     def peak(self) -> float:
@@ -350,7 +363,7 @@ def estimate(levels: list[int], obs: list[Observables], *, assumed: float,
     pk = _peak_differences(o[-1], o[-2])
     hi = _history_differences(o[-1], o[-2])
     order = assumed if order is None else max(float(order), assumed)
-    settled = False
+    settled = converging = False
     if len(o) == 3:
         pk1 = _peak_differences(o[1], o[0])
         hi1 = _history_differences(o[1], o[0])
@@ -361,6 +374,7 @@ def estimate(levels: list[int], obs: list[Observables], *, assumed: float,
         settled = rtol is not None and largest <= SETTLED_FRACTION * rtol
         p_hi, _ = _rate(n, h1, float(hi.max()), assumed, order)
         r_hi = observed_rate(n, (h1, float(hi.max())))
+        converging = math.isfinite(r_hi) and r_hi >= 1.0
         # the peaks' rate alone can look asymptotic by coincidence while a badly resolved resonance
         # still moves the histories at rate ~1 (an offset slider-crank with two flexible links: peak
         # rate 3.8, history rate 1.4, and the next doubling changed the rod's stress 5x more than
@@ -380,5 +394,7 @@ def estimate(levels: list[int], obs: list[Observables], *, assumed: float,
     f_pk, f_hi = (ratio ** p_pk - 1.0) / SAFETY, (ratio ** p_hi - 1.0) / SAFETY
     out = tuple(LinkError(link, float(pk[i, 0] / f_pk), float(pk[i, 1] / f_pk), float(hi[i] / f_hi))
                 for i, link in enumerate(o[-1].links))
+    peak = max((max(e.deflection, e.stress) for e in out), default=0.0)
+    clear = bool(converging and not asym and rtol is not None and peak <= CLEAR_FRACTION * rtol)
     return ErrorEstimate(out, tuple(int(x) for x in levels[-3:]), float(p_pk), len(o) == 3, rtol,
-                         float(p_hi), asymptotic=bool(asym), settled=bool(settled))
+                         float(p_hi), asymptotic=bool(asym), settled=bool(settled), clear=clear)

@@ -1043,7 +1043,7 @@ class _Run:
                     # the modes' physical decay), the histories must meet rtol too: the bearing loads
                     # ride on the axial forces, which the peaks do not see (a four-bar at 5 rpm on 48
                     # elements: peaks 4.7e-4, histories 1.8e-2, bearing forces 13 % off)
-                    if est.met and (est.asymptotic or believed or est.settled) and (
+                    if est.met and (est.asymptotic or believed or est.settled or est.clear) and (
                             n >= self._stab_need or (self.stable_beyond_doubt() and (
                                 est.history <= sc.rtol or self.clearly_stable()))):
                         break
