@@ -203,6 +203,39 @@ def test_observed_rate_recovers_a_power_law():
     assert math.isnan(accuracy.observed_rate((24, 48, 96), (1e-3, 2e-3)))  # not converging
 
 
+def _levels(peak_err, burst_err, levels=(96, 192, 384), rate=3.0, burst_rate=1.5):
+    """Observables of three levels: a peak at instant 10 off by ``peak_err (384/n)^rate`` and a
+    burst at instant 40, away from it, off by ``burst_err (384/n)^burst_rate`` (the Whitworth's
+    histories: the error made at t/T = 0.6-0.7)."""
+    t = np.arange(64) / 64
+    exact = np.exp(-((t - 10 / 64) / 0.05) ** 2) + 0.3 * np.exp(-((t - 40 / 64) / 0.05) ** 2)
+    out = []
+    for n in levels:
+        h = exact.copy()
+        h[10] *= 1 + peak_err * (384 / n) ** rate
+        h[40] += burst_err * (384 / n) ** burst_rate
+        out.append(accuracy.Observables(("rod",), n, np.array([h[10]]), np.array([10]), np.zeros(1),
+                                        np.zeros(1, int), np.zeros(1, int), (h,), (np.zeros((64, 0)),),
+                                        (False,)))
+    return list(levels), out
+
+
+def test_an_estimate_far_inside_rtol_with_converging_histories_is_met_clearly():
+    """Before the asymptotic range (histories at rate 1.5 < 2), peaks 100x inside rtol: met clearly;
+    not with the peaks only 10x inside, nor with histories that do not converge."""
+    kw = dict(assumed=3.0, order=4.0, rtol=1e-3)
+    est = accuracy.estimate(*_levels(1e-6, 1e-3), **kw)
+    assert not est.asymptotic and est.clear and est.met and est.peak <= 1e-5
+    assert est.history > 1e-3  # the histories' estimate stays as large as their differences say
+    near = accuracy.estimate(*_levels(3e-5, 1e-3), **kw)
+    assert not near.asymptotic and not near.clear and near.peak > 1e-5
+    stalled = accuracy.estimate(*_levels(1e-6, 1e-3, burst_rate=-0.5), **kw)  # the burst grows
+    assert not stalled.clear
+    # in the asymptotic range (histories at rate 4) it is the ordinary estimate, not "clear"
+    asym = accuracy.estimate(*_levels(1e-6, 1e-3, rate=4.0, burst_rate=4.0), **kw)
+    assert asym.asymptotic and not asym.clear
+
+
 def test_default_stability_of_the_four_bar_agrees_with_the_split_exponential(four_bar):
     """The verdict's spectral radius (Radau, finest level) within its error of magnus2 + split."""
     m, kw = four_bar
