@@ -480,19 +480,33 @@ class _Run:
     def forecast_elements(self, need: int) -> int:
         """The time elements the refinement is likely to end on (see :meth:`forecast`).
 
-        Three levels (two doublings past the first), at least ``need`` (the excited modes), and
+        Three levels (as many doublings past the last as make three), at least ``need`` (the excited modes), and
         the stability floor unless the verdict will not need it: the last level's spectral
         radius, raised by the most the scheme's numerical damping can lower it on the elements
         the response needs, below :data:`CERTAIN_RHO` (:meth:`stable_beyond_doubt`; the floor's
-        thousands of elements made the forecast of a 1 rpm linkage 100-250x too long).
+        thousands of elements made the forecast of a 1 rpm linkage 100-250x too long). Below the
+        floor, a verdict not clear by :data:`HISTORY_FREE_RHO` makes the histories meet rtol too,
+        which takes a level more (the four-bar at 5 rpm: five levels, forecast 0.46x without it).
         """
         lv = self.levels[-1]
-        target = max(4 * lv.n if len(self.levels) < 3 else lv.n, need)
+        target = lv.n
+        for _ in range(3 - len(self.levels)):
+            target = self.scheme.refine(target)
+        target = max(target, need)
         if len(self.levels) == 2:
             target = max(target, self._elements_for_rtol())
         if self._stab_need > target and not self._doubt_cleared(target):
             target = self._stab_need
+        elif self._stab_need > target and not self._clear_at(target):
+            target = self.scheme.refine(target)
         return min(target, MAX_STEPS)
+
+    def _clear_at(self, n: int) -> bool:
+        """The last level's spectral radius, raised by the numerical damping ``n`` elements can
+        cause, is below :data:`HISTORY_FREE_RHO` (:meth:`clearly_stable` on ``n`` elements)."""
+        rho = self.levels[-1].discrete.spectral_radius
+        loss = self._stab_loss(n) if self._stab_loss is not None else math.inf
+        return bool(np.isfinite(rho) and loss < 700.0 and rho * math.exp(loss) < HISTORY_FREE_RHO)
 
     def _elements_for_rtol(self) -> int:
         """The finest level the tolerance is likely to need, from the first two levels.
