@@ -929,7 +929,7 @@ class _Run:
         if key not in self._obs:
             t0 = time.perf_counter()
             res = self.result(self.levels[i], n_out)
-            self._obs[key] = res.observables()
+            self._obs[key] = res.observables(refined=False)  # the grid alike for every level
             self._t_read += time.perf_counter() - t0
             self._read[key] = (self.levels[i], res._cache)  # its peaks, forces... for the result
         return self._obs[key]

@@ -961,6 +961,14 @@ class PeriodicResult:
         """
         if "peaks" in self._cache:
             return self._cache["peaks"]
+        refine = self.sampler is not None and self.n >= 3
+        out = self._cache["peaks"] = self._peaks(refine=refine, vertex=not refine)
+        return out
+
+    def _peaks(self, refine: bool, vertex: bool) -> list[LinkPeaks]:
+        """:meth:`peaks`: refined between the output instants and stations (``refine``), or the
+        grid's parabolic vertices (``vertex``), or its largest samples (neither: what an error
+        estimate compares between levels read on the same grid, ``|max f - max g| <= max |f - g|``)."""
         links = self.model.mech.flexible_links
         series = []  # (link index, kind, grid values (n,) or (n, stations))
         for i, lk in enumerate(links):
@@ -969,9 +977,9 @@ class PeriodicResult:
                 series.append((i, "stress", self.stress(lk.name, per_element=PEAK_STATIONS)))
                 if self._blocks_on(lk):  # under a block, where no station is
                     series.append((i, "block", self.block_stress(lk.name)[0]))
-        refine = self.sampler is not None and self.n >= 3
         # the output grid's largest samples; the refinement around them raises them to the vertices
-        best = {si: _grid_peak(vals, self.t, vertex=not refine) for si, (i, kind, vals) in enumerate(series)}
+        best = {si: _grid_peak(vals, self.t, vertex=vertex and not refine)
+                for si, (i, kind, vals) in enumerate(series)}
         if refine:
             best = self._refine_peaks(links, series, best)
             best = self._polish_stations(links, series, best)
@@ -991,7 +999,6 @@ class PeriodicResult:
             else:
                 smax = sang = sst = float("nan")
             out.append(LinkPeaks(lk.name, d[0], ang(d[1]), smax, sang, sst))
-        self._cache["peaks"] = out
         return out
 
     def _polish_stations(self, links, series, best, sub: int = 8):
@@ -1111,8 +1118,12 @@ class PeriodicResult:
         out._cache["source"] = self._cache.get("source", self)
         return out
 
-    def observables(self):
+    def observables(self, refined: bool = True):
         """Peaks and histories of every flexible link (what the error estimate compares).
+
+        ``refined=False``: the peaks are the output grid's largest samples, not refined between
+        the instants and stations (:meth:`peaks`): levels read on the same grid are compared
+        alike, at a third of the read-out's cost.
 
         Returns
         -------
@@ -1120,7 +1131,13 @@ class PeriodicResult:
         """
         from .accuracy import Observables
         links = self.model.mech.flexible_links
-        pk = {p.link: p for p in self.peaks()}
+        if refined:
+            peaks = self.peaks()
+        else:
+            peaks = self._cache.get("grid_peaks")
+            if peaks is None:
+                peaks = self._cache["grid_peaks"] = self._peaks(refine=False, vertex=False)
+        pk = {p.link: p for p in peaks}
         period = self.scene.period
         w = self.model.mech.drives[0].speed
 
