@@ -122,3 +122,39 @@ def test_nonlinear_input_validation():
         nonlinear.solve(M, C, K, Q, T, lambda U, V: (None, None, None, U * np.nan))
     with pytest.raises(InputError, match="relaxation"):
         nonlinear.solve(M, C, K, Q, T, terms, method="relaxation", relaxation=1.5)
+
+
+def _toy(contract):
+    """A fixed-point map on 4 instants x 2 DOFs with a known solution, contracting by
+    ``contract(e)`` (the error after a step, given the error before), and its residual norm."""
+    rng = np.random.default_rng(7)
+    Us, Vs = rng.standard_normal((4, 2)), rng.standard_normal((4, 2))
+
+    def G(U, V, it):
+        Un, Vn = Us + contract(U - Us), Vs + contract(V - Vs)
+        return Un, Un, Vn  # the "solution" is the new displacements
+
+    def merit(U, V):
+        return float(np.linalg.norm(U - Us) + np.linalg.norm(V - Vs))
+
+    start = (Us * (1 + 1e-4), Vs * (1 + 1e-4))
+    return G, merit, start, Us
+
+
+def test_newton_stops_on_a_predicted_change_only_where_the_residual_bears_it_out():
+    """A coarser level's quadratic rate predicts the first change's successor far below eps. A map
+    that converges quadratically stops after that one solve; one that only halves its error (a
+    resonance the coarser level did not resolve) goes on to eps instead of stopping 65x off."""
+    prior = nonlinear.NewtonRate(constant=0.36, ratio=1e-3)
+    G, merit, start, Us = _toy(lambda e: 50.0 * e * np.abs(e))
+    quick = nonlinear.newton(G, 4, 2, 1.0, eps=1e-6, x0=start, merit=merit, rate=prior)
+    assert quick.converged and len(quick.history) == 1 and quick.predicted is not None
+    off = np.linalg.norm(quick.solution - Us) / np.linalg.norm(Us)
+    # within the slack the residual check allows on the prediction, and within eps
+    assert off <= nonlinear.PREDICT_SLACK * quick.predicted and off <= 1e-6, (off, quick.predicted)
+    G, merit, start, Us = _toy(lambda e: 0.5 * e)
+    slow = nonlinear.newton(G, 4, 2, 1.0, eps=1e-6, x0=start, merit=merit, rate=prior)
+    assert slow.converged and len(slow.history) > 3
+    assert np.linalg.norm(slow.solution - Us) / np.linalg.norm(Us) <= 1e-6
+    without_merit = nonlinear.newton(G, 4, 2, 1.0, eps=1e-6, x0=start, rate=prior)
+    assert len(without_merit.history) > 3

@@ -143,6 +143,12 @@ def test_piecewise_damping_field_settles_between_kinks_where_harmonics_do_not():
     E = exact(t)
     d = np.sqrt(np.einsum("tii->ti", E).max(axis=0))
     assert np.max(np.abs(field.at(t) - E) / np.outer(d, d)) < 1e-6
+    # breaks given twice, across the period's end, or as a tiny negative number (whose mod is T):
+    # the same two pieces, no piece of zero length, no 0/0 at the cycle's end
+    odd = PiecewiseDampingField(exact, T, [T / 2, -1e-20, T / 2 + 1e-16, T, 0.0], rtol=1e-7)
+    assert odd.degrees.size == 2
+    te = np.array([-1e-18, 0.0, T, T / 2])
+    assert np.max(np.abs(odd.at(te) - exact(te)) / np.outer(d, d)) < 1e-6
 
 
 def test_piecewise_damping_field_of_a_sliding_block_matches_the_eigenproblem():

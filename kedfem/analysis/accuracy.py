@@ -174,8 +174,9 @@ class ErrorEstimate:
         of ``rtol``: met whatever their rate (an over-estimate).
     clear : bool
         Before the asymptotic range, the peaks' estimate (credited at most the assumed rate)
-        is below :data:`CLEAR_FRACTION` of ``rtol`` and every history converges (observed
-        rate at least 1): met with a margin that a resonance still being resolved does not eat.
+        is below :data:`CLEAR_FRACTION` of ``rtol`` and the peaks and every history converge
+        (observed rates at least 1): met with a margin that a resonance still being resolved
+        does not eat.
     """
 
     links: tuple[LinkError, ...]
@@ -374,7 +375,8 @@ def estimate(levels: list[int], obs: list[Observables], *, assumed: float,
         settled = rtol is not None and largest <= SETTLED_FRACTION * rtol
         p_hi, _ = _rate(n, h1, float(hi.max()), assumed, order)
         r_hi = observed_rate(n, (h1, float(hi.max())))
-        converging = math.isfinite(r_hi) and r_hi >= 1.0
+        r_pk = observed_rate(n, (d1, float(pk.max())))
+        converging = math.isfinite(r_hi) and r_hi >= 1.0 and math.isfinite(r_pk) and r_pk >= 1.0
         # the peaks' rate alone can look asymptotic by coincidence while a badly resolved resonance
         # still moves the histories at rate ~1 (an offset slider-crank with two flexible links: peak
         # rate 3.8, history rate 1.4, and the next doubling changed the rod's stress 5x more than

@@ -598,11 +598,14 @@ class _Run:
         """Linear solves a finer level is likely to take: 1 for a linear scene; for Newton, 1 when
         the rate observed so far predicts the change after its first below the stopping level
         (:func:`kedfem.solvers.nonlinear.newton`), the first taken as half of the last level's
-        (the difference between levels shrinks 2-20x per doubling), else 2."""
+        (the difference between levels shrinks 2-20x per doubling), else 2; for the fixed-point
+        iterations, as many as the last level took."""
         lv = self.levels[-1]
         if lv.iterations <= 1 and not lv.history:
             return 1
         sc = self.scene
+        if sc.nonlinear_method != "newton":
+            return max(lv.iterations, 1)
         eps = max(sc.eps, COARSE_EPS * sc.rtol) if sc.rtol is not None else sc.eps
         first = 0.5 * lv.history[0] if lv.history and len(self.levels) > 1 else math.inf
         if self._rate is not None and first <= PREDICT_MAX_CHANGE and \

@@ -305,7 +305,8 @@ class PeriodicProblem:
         d = self.scheme.solve(terms.M, terms.C, terms.K, terms.Q, self.period, self.n, dC=dC, dK=dK, dQ=dQ,
                               **self.options)
         if isinstance(self.scheme, schemes.Collocation):
-            self.options["check_mass"] = False  # the state terms leave M alone: checked once
+            self.options["check_mass"] = False  # the state terms have no dM and the terms are assembled once:
+            # M is checked on this problem's first solve only
         return (d,) + d.instant_states()
 
     @property
@@ -367,7 +368,24 @@ class PeriodicProblem:
         return Solved(d, bool(converged), len(hist), tuple(float(h) for h in hist), used, list(caught))
 
     def polish(self, solved: Solved, *, eps: float, max_iter: int, rate=None) -> Solved:
-        """Iterate a solve on to a tighter ``eps`` from where it stopped (``rate`` as :meth:`solve`)."""
+        """Iterate a solve on to a tighter ``eps`` from where it stopped.
+
+        Parameters
+        ----------
+        solved : Solved
+            The solve to go on from (its method is kept).
+        eps : float
+            The tighter tolerance on the relative change (Eq. 21).
+        max_iter : int
+            Most linear solves.
+        rate : kedfem.solvers.nonlinear.NewtonRate, optional
+            As :meth:`solve`.
+
+        Returns
+        -------
+        Solved
+            Its iterations and history include those of ``solved``.
+        """
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             x0 = solved.discrete.instant_states()

@@ -76,7 +76,10 @@ class Scene:
         the mechanism's own.
     eps : float, optional
         Tolerance of the non-linear iteration (the paper's Eq. 21, as a
-        fraction; default: from ``accuracy``).
+        fraction; default: from ``accuracy``). Newton also stops on a last
+        change above it whose successor the rate of a coarser level predicts
+        below ``eps / 10`` (:func:`kedfem.solvers.nonlinear.newton`; the
+        result's ``predicted_change``).
     max_iter : int
         Largest number of linear solves of the non-linear iteration.
     nonlinear_method : {"newton", "fixed-point", "relaxation", "anderson"}

@@ -21,6 +21,11 @@ about ``e``), and checks the interpolant
 against exact matrices at instants between the samples. A field that does
 not settle by :data:`MAX_SAMPLES` falls back to the exact matrices at every
 instant.
+
+Where a block slides on a flexible link, ``C(t)`` has a kink at every instant the block
+crosses a node of the link (the element its mass and contact stiffness follow changes), and
+the harmonics decay slowly: :class:`PiecewiseDampingField` interpolates it between the kinks
+by Chebyshev series instead.
 """
 
 from __future__ import annotations
@@ -246,6 +251,8 @@ class PiecewiseDampingField:
         relative to each entry's scale.
     constant : bool
         Always False (the interface of :class:`DampingField`).
+    period : float
+        Cycle [s].
     """
 
     constant = False
@@ -253,9 +260,16 @@ class PiecewiseDampingField:
     def __init__(self, exact: Callable[[np.ndarray], np.ndarray], period: float, breaks, rtol: float):
         self._exact = exact
         self.period = T = float(period)
-        b = np.unique(np.mod(np.asarray(breaks, dtype=float), T))
+        b = np.mod(np.asarray(breaks, dtype=float).ravel(), T)
+        b = np.unique(np.where(b >= T, b - T, b))  # mod of a tiny negative number is T itself
         if b.size == 0:
             raise ValueError("PiecewiseDampingField needs at least one break")
+        # breaks closer than a trillionth of the period (and across its end) are one: no piece of
+        # (almost) zero length, whose local abscissa would be 0/0
+        keep = np.append(True, np.diff(b) > 1e-12 * T)
+        b = b[keep]
+        if b.size > 1 and b[0] + T - b[-1] <= 1e-12 * T:
+            b = b[:-1]
         self._starts = b
         self._ends = np.append(b[1:], b[0] + T)
         self.samples = 0
@@ -326,6 +340,7 @@ class PiecewiseDampingField:
         """Index of the piece of each instant (k,)."""
         b = self._starts
         tt = np.mod(t, self.period)
+        tt = np.where(tt >= self.period, 0.0, tt)
         return np.searchsorted(b, tt, side="right") - 1  # -1: before the first break, the last piece
 
     def _interpolate(self, t) -> np.ndarray:
@@ -355,5 +370,16 @@ class PiecewiseDampingField:
         return out
 
     def at(self, t) -> np.ndarray:
-        """``C`` at instants ``t`` (k,) [s], shape (k, N, N) [N s/m]."""
-        return self._interpolate(np.asarray(t, dtype=float))
+        """The damping matrices at given instants.
+
+        Parameters
+        ----------
+        t : array_like of float, shape (k,)
+            Instants [s] (any, taken modulo the period).
+
+        Returns
+        -------
+        ndarray, shape (k, N, N)
+            ``C`` [N s/m].
+        """
+        return self._interpolate(np.atleast_1d(np.asarray(t, dtype=float)))

@@ -61,6 +61,9 @@ WATCHDOG_GROWTH = 10.0
 PREDICT_FRACTION = 0.1
 #: ... and only on a change at most this large (a step still far from the solution is not predicted)
 PREDICT_MAX_CHANGE = 1e-2
+#: On an iteration's first solve (no rate of its own yet), the residual after the step must have
+#: shrunk to at most this multiple of the predicted ratio of changes
+PREDICT_SLACK = 10.0
 #: Stop as diverging when the change grows this much above its smallest value...
 DIVERGENCE_FACTOR = 1e4
 #: ... or when the response grows this much beyond the first (linear) solve.
@@ -124,13 +127,35 @@ class NewtonRate:
 
     @classmethod
     def observed(cls, before: float, after: float) -> "NewtonRate | None":
-        """The rate of two successive full steps' changes, or None unless they shrank."""
+        """The rate of two successive full steps' changes.
+
+        Parameters
+        ----------
+        before, after : float
+            Relative changes (Eq. 21) of an iterate and of the next, after a full step.
+
+        Returns
+        -------
+        NewtonRate or None
+            None unless both are finite and the change shrank.
+        """
         if not (math.isfinite(before) and math.isfinite(after) and 0.0 < after < before):
             return None
         return cls(after / (before * before), after / before)
 
     def predict(self, change: float) -> float:
-        """Upper estimate of the change after one that is ``change`` (relative)."""
+        """Upper estimate of the next change.
+
+        Parameters
+        ----------
+        change : float
+            A relative change (Eq. 21) of the iteration.
+
+        Returns
+        -------
+        float
+            ``max(C change^2, r change)``.
+        """
         return max(self.constant * change * change, self.ratio * change)
 
 
@@ -145,7 +170,9 @@ class NewtonOutcome:
     history : list of float
         Relative change of every iterate (Eq. 21).
     converged : bool
+        A change met ``eps``, or the predicted next one met a tenth of it.
     message : str
+        How it ended (for logs and warnings).
     rate : NewtonRate or None
         Observed on the last two full steps that shrank (None without such a pair).
     predicted : float or None
@@ -406,7 +433,10 @@ def newton(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter: int
     the next change it predicts (:meth:`NewtonRate.predict`, the larger of that rate's and the
     rate observed here) is below :data:`PREDICT_FRACTION` of ``eps``: the solve that would only
     confirm it is not made, and the returned solution (the solve about the last iterate) is
-    that predicted distance from the solution.
+    that predicted distance from the solution. On the first solve, before a rate of its own is
+    observed, the prediction must be borne out by the residual: the merit after the step at most
+    :data:`PREDICT_SLACK` times the predicted ratio of changes times the merit before (without a
+    merit no first solve stops on a prediction).
 
     Parameters
     ----------
@@ -464,6 +494,7 @@ def newton(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter: int
         return 0.0 if dU == 0.0 else (dU / nU if nU > 0 else math.inf)
 
     seen: NewtonRate | None = None  # observed on this iteration's last two full steps that shrank
+    borne: dict[float, bool] = {}  # change -> its prediction borne out by the residual (first solve)
 
     def predicted(change):
         """The next change predicted from ``change`` (inf without a rate to predict it by)."""
@@ -471,15 +502,31 @@ def newton(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter: int
             return math.inf
         return max(rate.predict(change), seen.predict(change) if seen is not None else 0.0)
 
-    def settled(change):
-        return change <= eps or predicted(change) <= PREDICT_FRACTION * eps
+    def settled(change, at, step):
+        """``change`` (of the iterate ``at``, whose solve is ``at + step``) ends the iteration."""
+        if change <= eps:
+            return True
+        guess = predicted(change)
+        if not guess <= PREDICT_FRACTION * eps:
+            return False
+        if seen is not None:
+            return True
+        # nothing observed on this iteration yet (its first solve): the residual must have shrunk
+        # as the prediction says, within PREDICT_SLACK (an assembly each, no solve); a map that
+        # converges slower than the coarser level's (a resonance it did not resolve) does not stop
+        if merit is None:
+            return False
+        if change not in borne:  # the watch and the line search ask about the same iterate
+            before, after = phi_of(at), phi_of(at + step)
+            borne[change] = math.isfinite(after) and after <= PREDICT_SLACK * (guess / change) * before
+        return borne[change]
 
     # watched full steps: on a stiff, strongly non-linear problem the full Newton step often
     # converges where a monotone line search creeps (the residual of the stiff axial rows rises
     # for a step or two); the best iterate is kept and the line search starts from it if not
     best = (rel(dU, nU), x, sol, d, dU, nU)
     watched = 0
-    while watched < WATCHDOG and solves < max_iter and not settled(best[0]):
+    while watched < WATCHDOG and solves < max_iter and not settled(best[0], best[1], best[3]):
         history.append(rel(dU, nU))
         xt = x + d
         solves += 1
@@ -511,7 +558,7 @@ def newton(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter: int
             converged = True
             message = f"converged after {solves} linear solves (change {change:.2e} <= eps {eps:.1e})"
             break
-        if settled(change):
+        if settled(change, x, d):
             converged, guess = True, predicted(change)
             message = (f"converged after {solves} linear solves (change {change:.2e}; Newton's rate "
                        f"predicts the next below {guess:.1e} <= {PREDICT_FRACTION:g} eps {eps:.1e})")
