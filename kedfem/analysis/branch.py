@@ -39,7 +39,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InstabilityWarning, KedError, UnboundedResponseError
-from ..fe.modal_damping import DampingField
+from ..fe.modal_damping import DampingField, PiecewiseDampingField, field_over_cycle
+from ..fe.slots import node_crossings
 from ..fe.damping import ModalDamping
 from ..fe.assembler import Assembler
 from ..fe.model import FEModel
@@ -81,8 +82,10 @@ REAL_TOL = 1e-6
 _FAILURES = (KedError, np.linalg.LinAlgError, FloatingPointError)
 
 
-def damping_field(scene, model, cycle) -> DampingField | None:
-    """The scene's modal damping over the cycle (None for other damping)."""
+def damping_field(scene, model, cycle, instants: int = 0) -> DampingField | PiecewiseDampingField | None:
+    """The scene's modal damping over the cycle for a problem read at ``instants`` instants
+    (:func:`kedfem.fe.modal_damping.field_over_cycle`: between the kinks where a block crosses
+    a node of its link; None for other damping, or where an eigenproblem per instant is cheaper)."""
     if not isinstance(scene.damping, ModalDamping):
         return None
 
@@ -90,7 +93,8 @@ def damping_field(scene, model, cycle) -> DampingField | None:
         asm = Assembler(model, cycle.at(t), (), damping=scene.damping)
         return asm.damping_matrix(*asm.structural())
 
-    return DampingField(exact, scene.period)
+    rtol = 1e-3 * (scene.rtol if scene.rtol is not None else 1e-3)
+    return field_over_cycle(exact, scene.period, node_crossings(model, cycle, scene.period), instants, rtol)
 
 
 class Family:
@@ -122,7 +126,7 @@ class Family:
         model = FEModel(sc.mech, reduction=sc.reduction)
         cycle = Cycle(sc.mech)
         ni = self.scheme.instants(self.n, sc.period * self.periods).size
-        field = damping_field(sc, model, cycle) if ni >= FIELD_INSTANTS else None
+        field = damping_field(sc, model, cycle, ni) if ni >= FIELD_INSTANTS else None
         prob = PeriodicProblem(sc, model, cycle, self.scheme, self.n, damping_field=field, periods=self.periods)
         self._cache[key] = prob
         while len(self._cache) > 6:

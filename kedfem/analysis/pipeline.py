@@ -33,7 +33,7 @@ from ..fe.assembler import Assembler
 from ..fe.damping import ModalDamping
 from ..errors import AccuracyWarning, EffectWarning, InputError
 from ..motion.kinematics import Cycle, kinematics
-from ..fe.modal_damping import FIELD_RTOL, DampingField, PiecewiseDampingField
+from ..fe.modal_damping import DampingField, PiecewiseDampingField, field_over_cycle
 from ..fe.slots import node_crossings
 from ..fe.effects.loads import idle_loads, load_breaks, load_force
 from ..motion.profiles import distinct_instants
@@ -86,9 +86,6 @@ HISTORY_FREE_RHO = 0.5
 #: eigenproblem per instant; so does every level of a solve of several levels (the
 #: slider-crank at rtol 1e-4: 67 eigenproblems instead of 252 for levels 12/24/48)
 FIELD_INSTANTS = 256
-#: exact damping matrices a piece between two kinks of ``C(t)`` costs, about (degree 32 and its
-#: checks; :class:`kedfem.fe.modal_damping.PiecewiseDampingField`)
-PIECE_COST = 40
 #: a DOF is stiff for the exact split of the exponential holds when the links' axial
 #: stiffness carries at least this share of its diagonal stiffness at every instant
 AXIAL_SHARE = 0.9
@@ -297,7 +294,7 @@ class _Run:
         Where a block crosses the nodes of its link, ``C(t)`` has kinks, which a trigonometric
         interpolant does not settle on before 1024 samples: there it is a Chebyshev interpolant
         between the kinks (:class:`PiecewiseDampingField`, to a thousandth of ``rtol``) when its
-        exact matrices, about :data:`PIECE_COST` per piece, are fewer than half of those of the
+        exact matrices, about :data:`kedfem.fe.modal_damping.PIECE_COST` per piece, are fewer than half of those of the
         three levels from ``n`` (``7 s n``), else exact matrices at every instant (the
         oscillating cylinder: 4 pieces against 12/24/48 elements).
         """
@@ -310,16 +307,12 @@ class _Run:
                 asm = Assembler(self.model, self.cycle.at(t), (), damping=sc.damping)
                 return asm.damping_matrix(*asm.structural())
 
-            pieces = self._node_breaks.size
-            if not pieces:
-                self._field = DampingField(exact, sc.period)
-            elif PIECE_COST * pieces < 0.5 * 7 * self.scheme.stages * n:
-                rtol = 1e-3 * (sc.rtol if sc.rtol is not None else 1e-3)
-                self._field = PiecewiseDampingField(exact, sc.period, self._node_breaks, max(rtol, FIELD_RTOL))
+            rtol = 1e-3 * (sc.rtol if sc.rtol is not None else 1e-3)
+            field = field_over_cycle(exact, sc.period, self._node_breaks, 7 * self.scheme.stages * n, rtol)
+            if isinstance(field, PiecewiseDampingField):
                 log.info("%s: modal damping between %d kinks from %d exact matrices (degrees %s, check %.1e)",
-                         sc.mech.name, pieces, self._field.samples, self._field.degrees.tolist(), self._field.error)
-            else:
-                self._field = False  # exact matrices at every instant
+                         sc.mech.name, field.degrees.size, field.samples, field.degrees.tolist(), field.error)
+            self._field = False if field is None else field  # False: exact matrices at every instant
         return self._field or None
 
     # ---------------------------------------------------------------- levels
