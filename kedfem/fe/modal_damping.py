@@ -205,8 +205,8 @@ class DampingField:
         return out
 
     def at(self, t) -> np.ndarray:
-        """``C`` at instants ``t`` (k,) [s], shape (k, N, N) [N s/m]."""
-        t = np.asarray(t, dtype=float)
+        """``C`` at instants ``t`` (k,) [s] (a scalar is one instant), shape (k, N, N) [N s/m]."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
         if self.constant:
             return np.broadcast_to(self._C0, (t.size,) + self._C0.shape).copy()
         if self._coef is None:
