@@ -332,15 +332,17 @@ class _Run:
         # off to overflow, where each converges from the linear start
         prev = next((lv for lv in reversed(self.levels) if lv.converged), None)
         x0 = prev.discrete.at(ti) if prob.state and prev is not None else None
+        origin = f"the {prev.n}-element level" if x0 is not None else "the linear response"
         if prob.state and x0 is None and self.start is not None:
             x0 = phase_sample(self.start.sampler.discrete, ti, sc.period)
+            origin = "the given start"
         out = prob.solve(x0, eps=eps, max_iter=sc.max_iter, method=sc.nonlinear_method, rate=self._rate)
         if out.converged and out.rate is not None:
             self._rate = out.rate  # the finest level's Newton rate predicts the next level's changes
         if prob.state and not out.converged and sc.nonlinear_method == "newton" and n >= self._need:
             # a level that resolves the excited modes: continuation in speed (on a coarser one the
             # branch may turn where the finer ones run on; it is solved again from a finer level)
-            out = self.homotopy(prob, out, eps)
+            out = self.homotopy(prob, out, eps, origin)
         if prob.state and eps > sc.eps:  # what finish() needs to go on to the scene's eps
             self._continue = (prob, out)
         td = time.perf_counter()
@@ -411,18 +413,26 @@ class _Run:
                          sc.mech.name, loads.size)
         return self._breaks
 
-    def homotopy(self, prob, failed, eps: float):
-        """The level's response by continuation in speed when Newton from the linear response (or
-        from the coarser level) does not converge (:func:`kedfem.analysis.branch.reach`).
+    def homotopy(self, prob, failed, eps: float, origin: str = "the linear response"):
+        """The level's response by continuation in speed when Newton from ``origin`` (the linear
+        response, the coarser level, or the given start) does not converge
+        (:func:`kedfem.analysis.branch.reach`).
 
         Returns the :class:`~kedfem.analysis.problem.Solved` at the scene's speed (the failed
-        one when the continuation does not get there; :attr:`path` says what happened).
+        one when the continuation does not get there; :attr:`path` says what happened). A
+        warning is logged when it begins: each of its steps is a Newton solve on the level's
+        elements, and tens of them take minutes.
         """
         from .branch import Family, reach
         from .campbell import RPM_PER_RAD_S
         from ..errors import NonlinearSolveError
         sc = self.scene
         w = sc.mech.drives[0].speed
+        log.warning("%s: Newton from %s did not converge at %.4g rpm on %d time elements: continuation in "
+                    "speed (each step a Newton solve on %d elements; tens of steps can take minutes)",
+                    sc.mech.name, origin, abs(w) * RPM_PER_RAD_S, prob.n, prob.n)
+        if self._bar is not None:
+            self._bar.set_postfix_str(f"{prob.n} time elements, continuation in speed", refresh=True)
         fam = Family(lambda s: dataclasses.replace(sc, speed=s), prob.n, self.scheme)
         fam._cache[float(w)] = prob
         t0 = time.perf_counter()
@@ -431,14 +441,14 @@ class _Run:
             try:
                 r = reach(fam, w, eps=eps, unit=(RPM_PER_RAD_S, "rpm"))
             except NonlinearSolveError as e:
-                self.path = ("Newton's method from the linear response did not converge; " + str(e))
+                self.path = (f"Newton's method from {origin} did not converge; " + str(e))
                 self.highest = e.highest
                 log.info("%s: %s", sc.mech.name, self.path)  # the NonlinearSolveError says it
                 return failed
         rpm = RPM_PER_RAD_S
         folds = (f", through folds at {', '.join(f'{abs(f) * rpm:.1f}' for f in r.folds)} rpm" if r.folds else "")
         self.path = (f"reached by continuation in speed from {r.start * rpm:.4g} rpm ({r.steps} steps{folds}; "
-                     f"Newton from the linear response did not converge at {abs(w) * rpm:.4g} rpm)")
+                     f"Newton from {origin} did not converge at {abs(w) * rpm:.4g} rpm)")
         log.info("%s: %s, %d solves, %.1f s", sc.mech.name, self.path, r.solves, time.perf_counter() - t0)
         d = r.point.discrete
         from .problem import Solved
@@ -1018,11 +1028,15 @@ class _Run:
                         self._bar.total = len(self.levels) + self._more_levels
                         self._bar.refresh()
                     if len(self.levels) == 1 and left > LONG_SOLVE:
+                        why = "a looser rtol or a coarser mesh is faster"
+                        if getattr(self, "_friction_reach", 0.0):  # the reversal sets the resolution
+                            smooth = min(f.smoothing for f in sc.mech.frictions.values())
+                            why = (f"the friction's reversal (smoothing {smooth:g} m/s) sets the elements: a "
+                                   f"larger smoothing= costs fewer")
                         log.warning("%s: this solve will take about %.0f s more (%d elastic DOFs, up to %d time "
-                                    "elements per cycle: %.2f s per element measured on the first %d); a looser "
-                                    "rtol or a coarser mesh is faster", sc.mech.name, left, self.model.n_dof,
-                                    self.forecast_elements(need),
-                                    (lv.kinematics + lv.assembly + lv.solve) / n, n)
+                                    "elements per cycle: %.2f s per element measured on the first %d); %s",
+                                    sc.mech.name, left, self.model.n_dof, self.forecast_elements(need),
+                                    (lv.kinematics + lv.assembly + lv.solve) / n, n, why)
                 failed = 0
                 for prev in reversed(self.levels):
                     if prev.converged:

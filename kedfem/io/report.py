@@ -179,7 +179,9 @@ def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_di
     tm = res.timings
     parts = [f"kinematics {tm.kinematics:.2f}", f"assembly {tm.assembly:.2f}", f"solve {tm.solve:.2f}"]
     parts += [f"{k} {v:.2f}" for k, v in stages.items()]
-    L.append(f"wall time [s]       {', '.join(parts)}; total {scene_time:.2f}")
+    fc = f" (the solve forecast {tm.forecast:.2f} s of its {tm.total:.2f} s after its second level)" \
+        if tm.forecast is not None else ""
+    L.append(f"wall time [s]       {', '.join(parts)}; total {scene_time:.2f}{fc}")
     if files:
         L.append(f"files in {out_dir}/")
         for f in files:
