@@ -509,11 +509,13 @@ def in_unit(value: float, unit: tuple = (1.0, ""), digits: int = 6) -> str:
 
 
 def reach(family: Family, target: float, *, eps: float, lowest: float | None = None,
-          max_steps: int = MAX_POINTS, unit: tuple = (1.0, ""), max_solves: int = MAX_SOLVES) -> Reached:
+          max_steps: int = MAX_POINTS, unit: tuple = (1.0, ""), max_solves: int = MAX_SOLVES,
+          start: tuple | None = None) -> Reached:
     """The response at ``target`` by continuation from a parameter value where Newton's method
-    converges from the linear response.
+    converges from the linear response, or from a given start.
 
-    The start is the largest of ``target / 2, target / 4, ...`` (down to ``lowest``, default
+    The start is the given one where Newton converges from it, else the largest of
+    ``target / 2, target / 4, ...`` (down to ``lowest``, default
     ``target / 64``) where it converges; from there natural continuation (a linear predictor in
     the parameter, Newton with a line search as corrector) steps toward ``target`` with step
     control. When the step cannot be shortened further a fold is likely: pseudo-arclength
@@ -536,6 +538,9 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
     unit : (float, str)
         Factor and name of the unit the messages state parameter values in (for the speed:
         ``(60 / (2 pi), "rpm")``).
+    start : (float, ndarray), optional
+        A parameter value below ``target`` and a packed response there (:meth:`Family.pack`),
+        e.g. a result the user passed as a start: tried first.
 
     Returns
     -------
@@ -559,9 +564,17 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
     def spent() -> bool:
         return family.solves - solves0 >= max_solves
 
-    start = None
+    given, start = start, None
+    if given is not None and 0.0 < abs(given[0]) < abs(target) * (1 - 1e-12):
+        try:
+            out, x = family.solve(sign * abs(given[0]), given[1], eps, max_iter=START_ITER)
+        except _FAILURES:
+            x = None
+        if x is not None:
+            start = Point(sign * abs(given[0]), x, np.asarray(out.discrete.floquet_multipliers),
+                          discrete=out.discrete)
     lam = 0.75 * abs(target)
-    while lam >= lowest * (1 - 1e-12):
+    while start is None and lam >= lowest * (1 - 1e-12):
         try:
             out, x = family.solve(sign * lam, None, eps, max_iter=START_ITER)
         except _FAILURES:

@@ -438,8 +438,14 @@ class _Run:
         t0 = time.perf_counter()
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
+            given = None
+            if self.start is not None and self.start.sampler is not None:
+                # continue from the given start's own speed, where it is a response
+                w0 = self.start.model.mech.drives[0].speed
+                p0 = fam.problem(w0)
+                given = (w0, fam.pack(*phase_sample(self.start.sampler.discrete, p0.instants, p0.period), w0))
             try:
-                r = reach(fam, w, eps=eps, unit=(RPM_PER_RAD_S, "rpm"))
+                r = reach(fam, w, eps=eps, unit=(RPM_PER_RAD_S, "rpm"), start=given)
             except NonlinearSolveError as e:
                 self.path = (f"Newton's method from {origin} did not converge; " + str(e))
                 self.highest = e.highest
