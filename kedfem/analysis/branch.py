@@ -93,8 +93,7 @@ def damping_field(scene, model, cycle, instants: int = 0) -> DampingField | Piec
         asm = Assembler(model, cycle.at(t), (), damping=scene.damping)
         return asm.damping_matrix(*asm.structural())
 
-    rtol = 1e-3 * (scene.rtol if scene.rtol is not None else 1e-3)
-    return field_over_cycle(exact, scene.period, node_crossings(model, cycle, scene.period), instants, rtol)
+    return field_over_cycle(exact, scene.period, node_crossings(model, cycle, scene.period), instants, scene.rtol)
 
 
 class Family:

@@ -307,8 +307,7 @@ class _Run:
                 asm = Assembler(self.model, self.cycle.at(t), (), damping=sc.damping)
                 return asm.damping_matrix(*asm.structural())
 
-            rtol = 1e-3 * (sc.rtol if sc.rtol is not None else 1e-3)
-            field = field_over_cycle(exact, sc.period, self._node_breaks, 7 * self.scheme.stages * n, rtol)
+            field = field_over_cycle(exact, sc.period, self._node_breaks, 7 * self.scheme.stages * n, sc.rtol)
             if isinstance(field, PiecewiseDampingField):
                 log.info("%s: modal damping between %d kinks from %d exact matrices (degrees %s, check %.1e)",
                          sc.mech.name, field.degrees.size, field.samples, field.degrees.tolist(), field.error)
@@ -348,7 +347,7 @@ class _Run:
         td = time.perf_counter()
         d = out.discrete
         lv = _Level(n, d, out.converged, out.iterations, out.history, prob.kinematics, prob.assembly, td - tc,
-                    out.caught, getattr(out, "predicted", None))
+                    out.caught, out.predicted)
         log.info("%s: level n=%d (%s) %d iteration(s) rho=%.4g %.3f s", sc.mech.name, n, scheme.name,
                  out.iterations, d.spectral_radius, prob.kinematics + prob.assembly + td - tc)
         self.levels.append(lv)
@@ -511,11 +510,15 @@ class _Run:
         return min(target, MAX_STEPS)
 
     def _clear_at(self, n: int) -> bool:
-        """The last level's spectral radius, raised by the numerical damping ``n`` elements can
-        cause, is below :data:`HISTORY_FREE_RHO` (:meth:`clearly_stable` on ``n`` elements)."""
+        """The last level's verdict would be clear on ``n`` elements (:meth:`clearly_stable`)."""
+        return self._raised_at(n) < HISTORY_FREE_RHO
+
+    def _raised_at(self, n: int) -> float:
+        """The last level's spectral radius raised by the most the numerical damping of ``n``
+        elements can lower it (inf when not finite or not bounded)."""
         rho = self.levels[-1].discrete.spectral_radius
         loss = self._stab_loss(n) if self._stab_loss is not None else math.inf
-        return bool(np.isfinite(rho) and loss < 700.0 and rho * math.exp(loss) < HISTORY_FREE_RHO)
+        return rho * math.exp(loss) if (np.isfinite(rho) and loss < 700.0) else math.inf
 
     def _elements_for_rtol(self) -> int:
         """The finest level the tolerance is likely to need, from the first two levels.
@@ -551,8 +554,7 @@ class _Run:
             return False
         if self.quasi_static_decay() and rho < CERTAIN_RHO:
             return True
-        loss = self._stab_loss(n) if self._stab_loss is not None else math.inf
-        return loss < 700.0 and rho * math.exp(loss) < CERTAIN_RHO
+        return self._raised_at(n) < CERTAIN_RHO
 
     def forecast(self, need: int) -> float:
         """Seconds the remaining levels are likely to take.
@@ -603,6 +605,12 @@ class _Run:
             return max(cost[1] - per * n[1], 0.0), per
         return 0.0, cost[-1] / n[-1]
 
+    def _level_eps(self) -> float:
+        """The non-linear tolerance of the levels of a tolerance-driven solve: a tenth of rtol
+        (their differences are of the order of rtol), at least the scene's ``eps``."""
+        sc = self.scene
+        return max(sc.eps, COARSE_EPS * sc.rtol) if sc.rtol is not None else sc.eps
+
     def _next_iterations(self) -> int:
         """Linear solves a finer level is likely to take: 1 for a linear scene; for Newton, 1 when
         the rate observed so far predicts the change after its first below the stopping level
@@ -615,7 +623,7 @@ class _Run:
         sc = self.scene
         if sc.nonlinear_method != "newton":
             return max(lv.iterations, 1)
-        eps = max(sc.eps, COARSE_EPS * sc.rtol) if sc.rtol is not None else sc.eps
+        eps = self._level_eps()
         first = 0.5 * lv.history[0] if lv.history and len(self.levels) > 1 else math.inf
         if self._rate is not None and first <= PREDICT_MAX_CHANGE and \
                 self._rate.predict(first) <= PREDICT_FRACTION * eps:
@@ -1021,7 +1029,7 @@ class _Run:
                 n = scheme.refine(n)
             # the levels' non-linear iteration stops at a tenth of rtol (their differences
             # are of the order of rtol); the last one then goes on to the scene's eps
-            eps_level = max(sc.eps, COARSE_EPS * sc.rtol) if sc.rtol is not None else sc.eps
+            eps_level = self._level_eps()
             believed = False
             while True:
                 lv = self.level(n, eps=eps_level)

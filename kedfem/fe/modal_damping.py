@@ -274,20 +274,17 @@ class PiecewiseDampingField:
             b = b[:-1]
         self._starts = b
         self._ends = np.append(b[1:], b[0] + T)
-        self.samples = 0
         lo, hi = PIECE_POINTS
-        first = exact(np.array([b[0]]))[0]
-        N = first.shape[0]
-        self._iu = np.triu_indices(N)
+        # the first degree of every piece from one batch of exact matrices
+        first = exact(np.mod(np.concatenate([self._points(a, z, lo) for a, z in zip(b, self._ends)]), T))
+        self.samples = first.shape[0]
+        self._iu = np.triu_indices(first.shape[1])
+        scale = DampingField._scale(first[:lo + 1])[self._iu]
         coefs, degrees, checks = [], [], []
-        scale = None
-        for a, z in zip(self._starts, self._ends):
+        for k, (a, z) in enumerate(zip(self._starts, self._ends)):
             p = lo
-            C = exact(np.mod(self._points(a, z, p), T))
-            self.samples += p + 1
+            C = first[k * (lo + 1):(k + 1) * (lo + 1)]
             while True:
-                if scale is None:
-                    scale = DampingField._scale(C)[self._iu]
                 c = self._coefficients(C[:, self._iu[0], self._iu[1]], p)
                 tail = float((np.abs(c[-max(1, p // 4):]).max(axis=0) / scale).max())
                 if tail <= rtol or 2 * p > hi:
@@ -388,7 +385,7 @@ class PiecewiseDampingField:
 
 
 def field_over_cycle(exact: Callable[[np.ndarray], np.ndarray], period: float, kinks, instants: int,
-                     rtol: float = FIELD_RTOL) -> "DampingField | PiecewiseDampingField | None":
+                     solve_rtol: float | None = None) -> "DampingField | PiecewiseDampingField | None":
     """The cheaper way to the modal damping at ``instants`` instants of a cycle.
 
     Without kinks the trigonometric interpolant (:class:`DampingField`). With them (a block
@@ -407,8 +404,10 @@ def field_over_cycle(exact: Callable[[np.ndarray], np.ndarray], period: float, k
         Instants of the kinks [s] (may be empty).
     instants : int
         How many instants the field will be read at.
-    rtol : float
-        Acceptance level of the piecewise interpolant (at least :data:`FIELD_RTOL`).
+    solve_rtol : float, optional
+        The solve's tolerance (None: 1e-3); the piecewise interpolant is accepted at a
+        thousandth of it (at least :data:`FIELD_RTOL`): a relative error ``e`` of ``C`` moves
+        the response by at most about ``e``.
 
     Returns
     -------
@@ -418,5 +417,6 @@ def field_over_cycle(exact: Callable[[np.ndarray], np.ndarray], period: float, k
     if kinks.size == 0:
         return DampingField(exact, period)
     if PIECE_COST * kinks.size < 0.5 * instants:
+        rtol = 1e-3 * (solve_rtol if solve_rtol is not None else 1e-3)
         return PiecewiseDampingField(exact, period, kinks, max(rtol, FIELD_RTOL))
     return None

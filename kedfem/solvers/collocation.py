@@ -368,12 +368,11 @@ class _Elements:
             Xq = sla.lu_solve(lu, Q.reshape(L, s * N).T).T
             X = np.concatenate([np.broadcast_to(XR, (L, s * N, 2 * N)), Xq[:, :, None]], axis=2)
         else:
-            if not self.check_mass:
-                pass
-            elif M.ndim == 2:
-                _check_mass(M, np.array([0]))
-            else:
-                _check_mass(M.reshape((L * s, N, N)), np.arange(a * s, b * s))
+            if self.check_mass:
+                if M.ndim == 2:
+                    _check_mass(M, np.array([0]))
+                else:
+                    _check_mass(M.reshape((L * s, N, N)), np.arange(a * s, b * s))
             X = np.empty((L, s * N, 2 * N + 1))
             Mb, Cb, Kb = (np.broadcast_to(X_, (L, s, N, N)) if X_.ndim == 2 else X_ for X_ in (M, C, K))
             hc = h[:, None, None, None] * tab.c[None, :, None, None]
