@@ -285,3 +285,28 @@ def test_rigid_loads_are_the_assemblers(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["loads.csv", "loads.png"]  # nothing left over
     text = L.summary()
     assert "bearing O2 (frame)" in text and "drive crank at O2" in text and "pin balance" in text
+
+
+def test_kinetostatic_condition_estimate_tracks_the_svd():
+    """The probe estimate of the kinetostatic equations' condition number (two solves with
+    random signs instead of an inverse) is within a small factor of the SVD's, from well-posed
+    matrices to ones a toggle position makes nearly singular."""
+    from kedfem.motion.kinetostatics import _probes, condition_estimate
+    rng = np.random.default_rng(3)
+    n = 30
+    U, _ = np.linalg.qr(rng.standard_normal((n, n)))
+    V, _ = np.linalg.qr(rng.standard_normal((n, n)))
+    smallest = np.logspace(0, -14, 40)
+    s = np.linspace(1.0, 10.0, n)[None].repeat(smallest.size, 0)
+    s[:, -1] = smallest
+    A = np.einsum("ij,kj,lj->kil", U, s, V)
+    A = A + 1e-3 * rng.standard_normal(A.shape) * smallest[:, None, None]  # not an exact construction
+    probes = _probes(n)
+    Y = np.linalg.solve(A, np.broadcast_to(probes, (A.shape[0],) + probes.shape))
+    est = condition_estimate(A, Y, probes)
+    exact = np.linalg.cond(A)
+    ratio = est / exact
+    assert np.all(ratio > 0.1) and np.all(ratio < 10 * np.sqrt(n)), ratio
+    # the flag the kinetostatics raises at 1e12 comes on with the exact condition number
+    assert np.array_equal(est[exact < 1e10] > 1e12, np.zeros((exact < 1e10).sum(), bool))
+    assert np.all(est[exact > 1e14] > 1e12)

@@ -114,7 +114,9 @@ def test_modal_damping_field_matches_the_eigenproblem_at_any_instant():
     asm = Assembler(run.model, run.cycle.at(t), (), damping=sc.damping)
     exact = asm.damping_matrix(*asm.structural())
     d = np.sqrt(np.abs(np.einsum("tii->ti", exact)).max(axis=0))
-    assert np.max(np.abs(field.at(t) - exact) / np.outer(d, d)) < 1e-9
+    # accepted at a thousandth of the solve's rtol (a relative error e of C moves the response
+    # by about e): 1e-6 at the preset's rtol 1e-3
+    assert np.max(np.abs(field.at(t) - exact) / np.outer(d, d)) < 1e-3 * sc.rtol
     # a time-invariant scene keeps its constant matrix exactly (the solvers' constant path)
     ex = kf.Scene(mechanisms.build("exciter"), effects=("inertia", "coupling", "springs"),
                   damping=kf.ModalDamping(0.02))

@@ -246,21 +246,24 @@ class Assembler:
         def full(x):
             return np.broadcast_to(x, (nt,) + x.shape[1:])
 
+        # E^T M and E^T C serve the transport terms too (a product each fewer)
+        EtM = Et @ M if M is not None else None
+        EtC = Et @ C if C is not None else None
         if M is not None:
-            out["M"] = full(Et @ M @ E)
-        Cq = Et @ C @ E if C is not None else None
+            out["M"] = full(EtM @ E)
+        Cq = EtC @ E if C is not None else None
         Kq = Et @ K @ E if K is not None else None
         if Ks is not None:
             out["Ks"] = full(Et @ Ks @ E)
         transport = self.transport and gm.E1 is not None
         if transport:
             if M is not None:
-                add = 2.0 * Et @ M @ gm.E1
+                add = 2.0 * (EtM @ gm.E1)
                 Cq = add if Cq is None else Cq + add
-                add = Et @ M @ gm.E2
+                add = EtM @ gm.E2
                 Kq = add if Kq is None else Kq + add
             if C is not None:
-                add = Et @ C @ gm.E1
+                add = EtC @ gm.E1
                 Kq = add if Kq is None else Kq + add
         if Cq is not None:
             out["C"] = full(Cq)

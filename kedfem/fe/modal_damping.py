@@ -14,8 +14,9 @@ analytic function of them. :class:`DampingField` therefore evaluates it
 exactly at ``m`` equally spaced instants and anywhere else by trigonometric
 interpolation (of the upper triangle, the harmonics that matter), doubling
 ``m`` until the harmonics of the top eighth of the
-sampled band (``3 m / 8 .. m / 2``) fall below :data:`FIELD_RTOL` of each
-entry's scale ``sqrt(C_ii C_jj)`` (the interpolation error is of that order;
+sampled band (``3 m / 8 .. m / 2``) fall below ``rtol`` of each
+entry's scale ``sqrt(C_ii C_jj)`` (a thousandth of the solve's tolerance, at least
+:data:`FIELD_RTOL`, in :func:`field_over_cycle`; the interpolation error is of that order;
 a relative error ``e`` of the damping matrix moves the response by at most
 about ``e``), and checks the interpolant
 against exact matrices at instants between the samples. A field that does
@@ -135,9 +136,14 @@ class DampingField:
         self.constant = False
         self.error = 0.0
         m = FIRST_SAMPLES
-        C = exact(np.arange(m) * (self.period / m))
+        # the check instants (between the samples of every doubling) ride on the first batch:
+        # an evaluation has a fixed cost of about ten instants' (the motion, the assembler)
+        tc = (np.arange(CHECKS) + 0.37) * (self.period / CHECKS)
+        both = exact(np.concatenate([np.arange(m) * (self.period / m), tc]))
+        C, Cc = both[:m], both[m:]
         while True:
-            if np.array_equal(C, np.broadcast_to(C[0], C.shape)):
+            if np.array_equal(C, np.broadcast_to(C[0], C.shape)) and np.array_equal(
+                    Cc, np.broadcast_to(C[0], Cc.shape)):
                 self.constant, self.samples, self._C0 = True, m, C[0].copy()
                 return
             scale = self._scale(C)
@@ -164,9 +170,8 @@ class DampingField:
         keep = int(sig.max()) + 1 if sig.size else 1
         self._coef = self._real_coefficients(coef[:keep, self._iu[0], self._iu[1]], m)
         # belt and braces: exact matrices between the samples
-        tc = (np.arange(CHECKS) + 0.37) * (self.period / CHECKS)
-        self.error = float(np.max(np.abs(self._interpolate(tc) - exact(tc)) / scale))
-        if self.error > CHECK_RTOL:
+        self.error = float(np.max(np.abs(self._interpolate(tc) - Cc) / scale))
+        if self.error > max(CHECK_RTOL, 10.0 * rtol):
             log.info("modal damping: interpolant %.1e off the exact matrices between samples; "
                      "exact matrices at every instant instead", self.error)
             self._coef, self.samples = None, 0
@@ -405,7 +410,7 @@ def field_over_cycle(exact: Callable[[np.ndarray], np.ndarray], period: float, k
     instants : int
         How many instants the field will be read at.
     solve_rtol : float, optional
-        The solve's tolerance (None: 1e-3); the piecewise interpolant is accepted at a
+        The solve's tolerance (None: 1e-3); either interpolant is accepted at a
         thousandth of it (at least :data:`FIELD_RTOL`): a relative error ``e`` of ``C`` moves
         the response by at most about ``e``.
 
@@ -414,9 +419,9 @@ def field_over_cycle(exact: Callable[[np.ndarray], np.ndarray], period: float, k
     DampingField, PiecewiseDampingField or None
     """
     kinks = np.asarray(kinks, dtype=float).ravel()
+    rtol = max(1e-3 * (solve_rtol if solve_rtol is not None else 1e-3), FIELD_RTOL)
     if kinks.size == 0:
-        return DampingField(exact, period)
+        return DampingField(exact, period, rtol)
     if PIECE_COST * kinks.size < 0.5 * instants:
-        rtol = 1e-3 * (solve_rtol if solve_rtol is not None else 1e-3)
-        return PiecewiseDampingField(exact, period, kinks, max(rtol, FIELD_RTOL))
+        return PiecewiseDampingField(exact, period, kinks, rtol)
     return None

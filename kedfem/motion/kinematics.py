@@ -390,7 +390,7 @@ class _LoopModel:
     def residual(self, theta, s, w=None):
         """Loop-closure and weld residuals, shape (..., n_eq) (``w``: the edge vectors, when known)."""
         w = self.edge_vectors(theta, s) if w is None else w
-        loop = np.einsum("ce,...ed->...cd", self.D, w).reshape(theta.shape[:-1] + (-1,))
+        loop = np.matmul(self.D, w).reshape(theta.shape[:-1] + (-1,))
         if self.welds:
             wv = np.stack([theta[..., i] - (theta[..., j] if j >= 0 else 0.0)
                            - (self.theta0[i] - (self.theta0[j] if j >= 0 else 0.0))
@@ -409,7 +409,10 @@ class _LoopModel:
         sw = np.empty_like(w)  # d w_e / d theta_member = S w_e
         sw[..., 0] = -w[..., 1]
         sw[..., 1] = w[..., 0]
-        Jt = np.einsum("cem,...ed->...cdm", self._Dm, sw)
+        if sw.size > 64 * sw.shape[-2] * 2:  # many instants: one BLAS product (an einsum below)
+            Jt = np.moveaxis(np.tensordot(sw, self._Dm, axes=([sw.ndim - 2], [1])), -3, -2)
+        else:
+            Jt = np.einsum("cem,...ed->...cdm", self._Dm, sw)
         J[..., : 2 * nc, :nm] = Jt.reshape(lead + (2 * nc, nm))
         for e in self._fixed_slider_edges:
             k = self.edge_slider[e]
@@ -497,20 +500,20 @@ def _rates(model, theta, s, th_drive_rate, cols):
     J = model.jacobian(theta, s, w)  # (n, neq, nm+ns)
     Ju = J[:, :, cols]
     Jd = J[:, :, model.drive_idx]
-    rhs_v = -np.einsum("nek,nk->ne", Jd, th_drive_rate)
+    rhs_v = -np.matmul(Jd, th_drive_rate[..., None])[..., 0]
     yd = np.linalg.solve(Ju, rhs_v[..., None])[..., 0]
     omega, sd = _split(model, yd, th_drive_rate)
     # acceleration: J [alpha; s''] = sum_loops D omega_e^2 w_e  (constant drive speed)
     mem = model.edge_member >= 0
     om_e = np.zeros((n, len(model.edges)))
     om_e[:, mem] = omega[:, model.edge_member[mem]]
-    quad = np.einsum("ce,ne,ned->ncd", model.D, om_e**2, w)
+    quad = np.matmul(model.D, (om_e**2)[..., None] * w)
     sl = model._slot_edges
     if sl.size:  # Coriolis: the slot turns while the block slides, 2 omega s' S u
         cor = np.zeros_like(w)
         cor[:, sl] = 2.0 * (om_e[:, sl] * sd[:, model.edge_slider[sl]])[..., None] \
             * (model.slot_directions(theta) @ _S.T)
-        quad = quad - np.einsum("ce,ned->ncd", model.D, cor)
+        quad = quad - np.matmul(model.D, cor)
     quad = quad.reshape(n, -1)
     rhs_a = np.concatenate([quad, np.zeros((n, len(model.welds)))], axis=1)
     ydd = np.linalg.solve(Ju, rhs_a[..., None])[..., 0]
@@ -540,9 +543,9 @@ def _joint_states(model, theta, s, omega, sd, alpha, sdd):
         k = model.edge_slider[sl]
         wd[:, sl] += sd[:, k, None] * u
         wdd[:, sl] += sdd[:, k, None] * u + 2.0 * (om_e[:, sl] * sd[:, k])[..., None] * (u @ _S.T)
-    r = np.einsum("je,ned->njd", model.P, w)
-    v = np.einsum("je,ned->njd", model.P, wd)
-    a = np.einsum("je,ned->njd", model.P, wdd)
+    r = np.matmul(model.P, w)
+    v = np.matmul(model.P, wd)
+    a = np.matmul(model.P, wdd)
     return r, v, a
 
 
