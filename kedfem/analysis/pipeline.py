@@ -80,12 +80,14 @@ CERTAIN_RHO = 0.9
 #: the damping bound) is below this; between it and CERTAIN_RHO, or when only the modes' physical
 #: decay makes the verdict clear, the histories must meet rtol too
 HISTORY_FREE_RHO = 0.5
-#: a level with at least this many instants takes modal damping from the cycle's
+#: a problem with at least this many instants takes modal damping from the cycle's
 #: interpolated field (:class:`kedfem.fe.modal_damping.DampingField`, built once, at least
-#: 32 exact samples and 3 checks, within 1e-9 of the exact matrices) instead of an
-#: eigenproblem per instant; so does every level of a solve of several levels (the
-#: slider-crank at rtol 1e-4: 67 eigenproblems instead of 252 for levels 12/24/48)
-FIELD_INSTANTS = 256
+#: 32 exact samples and 3 checks, within a thousandth of rtol of the exact matrices) instead
+#: of an eigenproblem per instant, where the field is cheaper
+#: (:func:`kedfem.fe.modal_damping.field_over_cycle`); so does every level of a solve of
+#: several levels (the slider-crank at rtol 1e-4: 35 eigenproblems instead of 252 for levels
+#: 12/24/48; one solve on 48 elements: 35 instead of 144)
+FIELD_INSTANTS = 70
 #: a DOF is stiff for the exact split of the exponential holds when the links' axial
 #: stiffness carries at least this share of its diagonal stiffness at every instant
 AXIAL_SHARE = 0.9
@@ -287,9 +289,10 @@ class _Run:
         self._more_levels = 0   # levels the forecast expects after the last one solved
         self.t_setup = time.perf_counter() - self.t0
 
-    def damping_field(self, n: int) -> DampingField | PiecewiseDampingField | None:
+    def damping_field(self, n: int, several: bool = True) -> DampingField | PiecewiseDampingField | None:
         """The scene's modal damping over the cycle (built once, when the first level on ``n``
-        elements asks; None for other damping).
+        elements asks, for three levels from ``n`` or, not ``several``, that one; None for
+        other damping).
 
         Where a block crosses the nodes of its link, ``C(t)`` has kinks, which a trigonometric
         interpolant does not settle on before 1024 samples: there it is a Chebyshev interpolant
@@ -307,7 +310,8 @@ class _Run:
                 asm = Assembler(self.model, self.cycle.at(t), (), damping=sc.damping)
                 return asm.damping_matrix(*asm.structural())
 
-            field = field_over_cycle(exact, sc.period, self._node_breaks, 7 * self.scheme.stages * n, sc.rtol)
+            serves = (7 if several else 1) * self.scheme.stages * n
+            field = field_over_cycle(exact, sc.period, self._node_breaks, serves, sc.rtol)
             if isinstance(field, PiecewiseDampingField):
                 log.info("%s: modal damping between %d kinks from %d exact matrices (degrees %s, check %.1e)",
                          sc.mech.name, field.degrees.size, field.samples, field.degrees.tolist(), field.error)
@@ -326,6 +330,7 @@ class _Run:
         self._continue = None
         ti, prob = self.problem(n)
         tc = time.perf_counter()
+        a0 = prob.assembly  # the terms are assembled on the first solve: assembly, not solve time
         # warm start from the previous level only if its iteration converged: a coarse
         # level's diverged iterate (|mu| = 585 at 24 elements) sent every finer level
         # off to overflow, where each converges from the linear start
@@ -346,10 +351,11 @@ class _Run:
             self._continue = (prob, out)
         td = time.perf_counter()
         d = out.discrete
-        lv = _Level(n, d, out.converged, out.iterations, out.history, prob.kinematics, prob.assembly, td - tc,
+        t_solve = td - tc - (prob.assembly - a0)
+        lv = _Level(n, d, out.converged, out.iterations, out.history, prob.kinematics, prob.assembly, t_solve,
                     out.caught, out.predicted)
         log.info("%s: level n=%d (%s) %d iteration(s) rho=%.4g %.3f s", sc.mech.name, n, scheme.name,
-                 out.iterations, d.spectral_radius, prob.kinematics + prob.assembly + td - tc)
+                 out.iterations, d.spectral_radius, prob.kinematics + prob.assembly + t_solve)
         self.levels.append(lv)
         if not lv.converged and prob.state:
             self._failed_problems[n] = (ti, prob)  # assembled once: backfill() solves it again
@@ -359,7 +365,7 @@ class _Run:
             if self._bar.total is not None and self._bar.n >= self._bar.total:
                 self._bar.total = self._bar.n + 1  # a level more than the forecast expected
             self._bar.update(1)
-            self._bar.set_postfix_str(f"{n} time elements, {prob.kinematics + prob.assembly + td - tc:.1f} s",
+            self._bar.set_postfix_str(f"{n} time elements, {prob.kinematics + prob.assembly + t_solve:.1f} s",
                                       refresh=True)
         return lv
 
@@ -370,14 +376,16 @@ class _Run:
         for i, lv in enumerate(self.levels[:-1]):
             if lv.converged:
                 continue
+            reused = lv.n in self._failed_problems  # its kinematics and assembly are counted already
             ti, prob = self._failed_problems.pop(lv.n, None) or self.problem(lv.n)
-            t0 = time.perf_counter()
+            t0, a0 = time.perf_counter(), prob.assembly
             out = prob.solve(fine.discrete.at(ti), eps=eps, max_iter=sc.max_iter, method=sc.nonlinear_method)
             if out.converged:
                 log.info("%s: level n=%d solved again from level n=%d", sc.mech.name, lv.n, fine.n)
                 self.levels[i] = _Level(lv.n, out.discrete, True, lv.iterations + out.iterations, out.history,
-                                        lv.kinematics + prob.kinematics, lv.assembly + prob.assembly,
-                                        lv.solve + time.perf_counter() - t0, out.caught)
+                                        lv.kinematics + (0.0 if reused else prob.kinematics),
+                                        lv.assembly + prob.assembly - (a0 if reused else 0.0),
+                                        lv.solve + time.perf_counter() - t0 - (prob.assembly - a0), out.caught)
                 self._obs = {k: v for k, v in self._obs.items() if k[0] != i}
             else:
                 self._failed_problems[lv.n] = (ti, prob)
@@ -388,7 +396,7 @@ class _Run:
         edges = snapped_edges(n, self.scene.period, self.breaks()) if self.scheme.graded else None
         ti = self.scheme.instants(n, self.scene.period, edges)
         several = self.scene.steps is None or self.scene.estimate
-        field = self.damping_field(n) if (ti.size >= FIELD_INSTANTS or several) else None
+        field = self.damping_field(n, several) if (ti.size >= FIELD_INSTANTS or several) else None
         return ti, PeriodicProblem(self.scene, self.model, self.cycle, self.scheme, n, damping_field=field,
                                    stiff=self.stiff, edges=edges, kinks=self.breaks() if edges is not None else None)
 

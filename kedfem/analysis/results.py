@@ -99,7 +99,10 @@ class Sampler:
 class Timings:
     """Wall time [s] of the stages of a solve.
 
-    ``forecast``: the whole solve's wall time [s] as forecast after its second level (its
+    ``kinematics``: the rigid-body motion at the levels' instants (and the solve's setup);
+    ``assembly``: the system terms there; ``solve``: the periodic solves, each non-linear
+    iteration's state terms included (not the assembly of the terms); ``total``: all of it,
+    with the damping field, the read-outs and the error estimate. ``forecast``: the whole solve's wall time [s] as forecast after its second level (its
     first when it has one; a tolerance-driven solve; None otherwise), to compare with ``total``.
     """
 

@@ -114,6 +114,9 @@ class DampingField:
         Cycle [s].
     rtol : float
         Acceptance level of the highest harmonics (see the module docstring).
+    max_samples : int
+        Most samples per cycle (at most :data:`MAX_SAMPLES`): a field that needs more falls
+        back to exact matrices at every instant.
 
     Attributes
     ----------
@@ -129,7 +132,7 @@ class DampingField:
     """
 
     def __init__(self, exact: Callable[[np.ndarray], np.ndarray], period: float,
-                 rtol: float = FIELD_RTOL):
+                 rtol: float = FIELD_RTOL, max_samples: int = MAX_SAMPLES):
         self._exact = exact
         self.period = float(period)
         self.samples = 0
@@ -152,7 +155,7 @@ class DampingField:
             tail = float(upper.max()) if upper.size else 0.0
             if tail <= rtol:
                 break
-            if 2 * m > MAX_SAMPLES:
+            if 2 * m > max_samples:
                 log.info("modal damping: the harmonics of C(t) reach %.1e of its scale at %d samples "
                          "per cycle; exact matrices at every instant instead", tail, m)
                 self._coef = None
@@ -393,7 +396,8 @@ def field_over_cycle(exact: Callable[[np.ndarray], np.ndarray], period: float, k
                      solve_rtol: float | None = None) -> "DampingField | PiecewiseDampingField | None":
     """The cheaper way to the modal damping at ``instants`` instants of a cycle.
 
-    Without kinks the trigonometric interpolant (:class:`DampingField`). With them (a block
+    Without kinks the trigonometric interpolant (:class:`DampingField`), where ``instants`` is at
+    least twice its first batch, sampled at most half as often as ``instants``. With them (a block
     crossing the nodes of its link) the Chebyshev pieces between them
     (:class:`PiecewiseDampingField`) when their exact matrices, about :data:`PIECE_COST` per
     piece, are fewer than half of ``instants``; else None (an eigenproblem per instant is
@@ -421,7 +425,10 @@ def field_over_cycle(exact: Callable[[np.ndarray], np.ndarray], period: float, k
     kinks = np.asarray(kinks, dtype=float).ravel()
     rtol = max(1e-3 * (solve_rtol if solve_rtol is not None else 1e-3), FIELD_RTOL)
     if kinks.size == 0:
-        return DampingField(exact, period, rtol)
+        if instants < 2 * (FIRST_SAMPLES + CHECKS):
+            return None  # its first batch would cost half the eigenproblems
+        # doubled no further than half the instants it serves (beyond, they are cheaper)
+        return DampingField(exact, period, rtol, max_samples=min(MAX_SAMPLES, max(FIRST_SAMPLES, instants // 2)))
     if PIECE_COST * kinks.size < 0.5 * instants:
         return PiecewiseDampingField(exact, period, kinks, rtol)
     return None
