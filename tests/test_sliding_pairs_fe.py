@@ -295,3 +295,22 @@ def test_whitworth_peak_stress_is_the_stress_fields_maximum_under_the_block():
     assert under.max() > stations  # the peak is under the block
     k = int(np.argmax(under))
     assert abs(pk.stress_station - x[k]) < 1e-3 * sc.mech.links["lever"].length
+
+
+def test_wide_maps_formed_on_their_active_columns_equal_the_full_width(monkeypatch):
+    """The elements and point masses at a block are formed on the columns each instant uses
+    (``Assembler._transform_active``, a fraction of the Whitworth's 54): the same system,
+    to round-off, as the products over the full width."""
+    from kedfem.analysis import pipeline
+    from kedfem.fe import assembler, scatter
+    sc = kf.load_scene(os.path.join(os.path.dirname(__file__), "..", "examples", "scenes", "whitworth.toml"))[0]
+    run = pipeline._Run(sc)
+    _ti, prob = run.problem(24)
+    active = prob.assembler.system()
+    monkeypatch.setattr(assembler, "ACTIVE_WIDTH", 10 ** 6)
+    monkeypatch.setattr(scatter, "ACTIVE_WIDTH", 10 ** 6)
+    _ti, prob = run.problem(24)
+    full = prob.assembler.system()
+    for name in ("M", "C", "K", "Q"):
+        a, b = getattr(active, name), getattr(full, name)
+        assert np.allclose(a, b, rtol=0.0, atol=1e-12 * np.abs(b).max()), name

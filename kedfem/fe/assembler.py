@@ -20,7 +20,9 @@ from ..errors import InputError, KedError
 from ..model import elements as el
 from ..motion.kinematics import Motion
 from ..motion.kinetostatics import JointForces, kinetostatics, link_axial_force
+from .maps import GroupMap
 from .model import FEModel
+from .scatter import ACTIVE_WIDTH, ActiveTerms
 from .damping import ModalDamping, Rayleigh, check_damping, damping_matrix
 from . import effects as registry
 from .effects.base import BeamKinematics, Chunk, Effect, GroupTerms, StateTerms, slice_motion
@@ -239,6 +241,43 @@ class Assembler:
         if M is None and C is None and K is None and Q is None:
             return None
         gm = model.group_map(gname if key is None else key, mo, self._forms)
+        if gm.E.shape[-1] >= ACTIVE_WIDTH and nt > 1 and gm.E.shape[0] == nt:
+            return self._transform_active(gm, (M, C, K, Ks, Q), nt)
+        return self._q_terms(gm, M, C, K, Ks, Q, nt)
+
+    def _transform_active(self, gm, terms, nt: int) -> dict:
+        """:meth:`_q_terms` of a wide group (the elements and point masses at a block, whose maps
+        span every node of the member it slides on) on the columns each instant uses: instants
+        alike are formed together, the columns left out being zeros (the Whitworth's lever
+        element: 11 of 54), and kept as :class:`~kedfem.fe.scatter.ActiveTerms`."""
+        act = (gm.E != 0.0).any(axis=(1, 2))
+        for X in (gm.E1, gm.E2):
+            if X is not None:
+                act = act | (X != 0.0).any(axis=(1, 2)) if X.shape[0] == nt else act | (X != 0.0).any(axis=(0, 1, 2))
+        patterns, which = np.unique(act, axis=0, return_inverse=True)
+        which = np.ravel(which)
+        parts: dict[str, list] = {}
+
+        def rows_of(X, rows):
+            return X if X is None or X.shape[0] != nt else X[rows]
+
+        for k, pat in enumerate(patterns):
+            cols = np.flatnonzero(pat)
+            rows = np.flatnonzero(which == k)
+            if not cols.size:
+                continue
+            sub = GroupMap(gm.cols[:, cols], rows_of(gm.E, rows)[..., cols],
+                           *(None if X is None else rows_of(X, rows)[..., cols] for X in (gm.E1, gm.E2)),
+                           *(rows_of(X, rows) for X in (gm.p, gm.p1, gm.p2)))
+            out = self._q_terms(sub, *(rows_of(X, rows) for X in terms), rows.size)
+            for name, val in out.items():
+                parts.setdefault(name, []).append((rows, cols, val))
+        return {name: ActiveTerms(nt, tuple(p_)) for name, p_ in parts.items()}
+
+    def _q_terms(self, gm, M, C, K, Ks, Q, nt: int) -> dict:
+        """``E^T M E``, ``E^T (C E + 2 M E')``, ``E^T (K E + C E' + M E'')``, ``E^T Ks E`` and
+        ``E^T (Q - K p - C p' - M p'')`` of element terms (shapes (nt or 1, n_el, d, d) and
+        (nt or 1, n_el, d)) through the map ``gm`` (:class:`~kedfem.fe.maps.GroupMap`)."""
         E = gm.E
         Et = np.swapaxes(E, -1, -2)
         out = {}

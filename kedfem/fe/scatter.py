@@ -7,15 +7,31 @@ segment sums, single instants as scipy.sparse CSR matrices.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["Scatter", "ACTIVE_WIDTH"]
+__all__ = ["Scatter", "ACTIVE_WIDTH", "ActiveTerms"]
 
 #: element matrices at least this wide are scattered by the columns each instant uses (the
 #: elements and point masses at a block carry the columns of every node of the member it
 #: slides on, of which a handful are not zero at an instant)
 ACTIVE_WIDTH = 24
+
+
+@dataclass(frozen=True)
+class ActiveTerms:
+    """Element terms of a wide group kept on the columns each instant uses.
+
+    ``parts``: ``(rows (r,), cols (k,), data)`` with ``data`` (r, n_el, k, k) element matrices
+    or (r, n_el, k) element vectors at instants ``rows`` of ``nt``, on the group's element
+    columns ``cols``; the columns left out are zeros. :meth:`Scatter.scatter_matrix` and
+    :meth:`Scatter.scatter_vector` take them as they take dense terms.
+    """
+
+    nt: int
+    parts: tuple
 
 
 def _plan(flat_targets, keep):
@@ -61,6 +77,24 @@ class Scatter:
             self._scatter_cache[key] = _matrix_plan(self._static_layout(gname)[0][:, cols], self.n_dof)
         return self._scatter_cache[key]
 
+    def _sub_vector_operator(self, gname: str, cols: np.ndarray):
+        """Segment sums of a group's element vectors restricted to element columns ``cols``."""
+        key = (gname, cols.tobytes(), "vector")
+        if key not in self._scatter_cache:
+            c = self._static_layout(gname)[0][:, cols].reshape(-1)
+            self._scatter_cache[key] = _plan(c, c < self.n_dof)
+        return self._scatter_cache[key]
+
+    def _scatter_parts(self, gname: str, terms: ActiveTerms, out: np.ndarray, matrix: bool) -> np.ndarray:
+        """Scatter :class:`ActiveTerms` into ``out`` (nt, N, N) or (nt, N)."""
+        flat = out.reshape(terms.nt, -1)
+        for rows, cols, data in terms.parts:
+            idx, starts, targets = (self._sub_operator if matrix else self._sub_vector_operator)(gname, cols)
+            if idx.size:
+                flat[rows[:, None], targets[None, :]] += np.add.reduceat(
+                    np.ascontiguousarray(data).reshape(rows.size, -1)[:, idx], starts, axis=1)
+        return out
+
     def _scatter_active(self, gname: str, data: np.ndarray, out: np.ndarray) -> None:
         """Scatter of wide element matrices by the columns each instant actually uses.
 
@@ -95,13 +129,16 @@ class Scatter:
             out2d[:, targets] += np.add.reduceat(data2d[:, idx], starts, axis=1)
 
     def scatter_matrix(self, gname: str, data: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        """Scatter element matrices ``(nt, n_el, m, m)`` to dense ``(nt, N, N)``.
+        """Scatter element matrices ``(nt, n_el, m, m)`` (or :class:`ActiveTerms`) to dense
+        ``(nt, N, N)``.
 
         With ``out`` (nt, N, N), C-contiguous, the entries are added to it.
         """
+        N = self.n_dof
+        if isinstance(data, ActiveTerms):
+            return self._scatter_parts(gname, data, np.zeros((data.nt, N, N)) if out is None else out, True)
         (mat, _vec) = self._operators(gname)
         nt = data.shape[0]
-        N = self.n_dof
         if out is None:
             out = np.zeros((nt, N, N))
         if data.shape[-1] >= ACTIVE_WIDTH and data.shape[0] > 1 and out.flags.c_contiguous:
@@ -111,7 +148,10 @@ class Scatter:
         return out
 
     def scatter_vector(self, gname: str, data: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        """Scatter element vectors ``(nt, n_el, m)`` to dense ``(nt, N)`` (added to ``out`` if given)."""
+        """Scatter element vectors ``(nt, n_el, m)`` (or :class:`ActiveTerms`) to dense ``(nt, N)``
+        (added to ``out`` if given)."""
+        if isinstance(data, ActiveTerms):
+            return self._scatter_parts(gname, data, np.zeros((data.nt, self.n_dof)) if out is None else out, False)
         (_mat, vec) = self._operators(gname)
         nt = data.shape[0]
         if out is None:
