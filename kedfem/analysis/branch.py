@@ -60,8 +60,6 @@ MAX_SOLVES = 1000
 START_ITER = 16
 #: most linear solves of one natural continuation step (a step that needs more is halved)
 STEP_ITER = 16
-#: a level with at least this many instants takes modal damping from an interpolated field
-FIELD_INSTANTS = 256
 #: relative tolerance of the arclength corrector (displacements and parameter)
 CORRECTOR_EPS = 1e-8
 #: most bordered Newton steps of one correction
@@ -125,7 +123,7 @@ class Family:
         model = FEModel(sc.mech, reduction=sc.reduction)
         cycle = Cycle(sc.mech)
         ni = self.scheme.instants(self.n, sc.period * self.periods).size
-        field = damping_field(sc, model, cycle, ni) if ni >= FIELD_INSTANTS else None
+        field = damping_field(sc, model, cycle, ni)  # where it is cheaper than eigenproblems
         prob = PeriodicProblem(sc, model, cycle, self.scheme, self.n, damping_field=field, periods=self.periods)
         self._cache[key] = prob
         while len(self._cache) > 6:

@@ -80,14 +80,6 @@ CERTAIN_RHO = 0.9
 #: the damping bound) is below this; between it and CERTAIN_RHO, or when only the modes' physical
 #: decay makes the verdict clear, the histories must meet rtol too
 HISTORY_FREE_RHO = 0.5
-#: a problem with at least this many instants takes modal damping from the cycle's
-#: interpolated field (:class:`kedfem.fe.modal_damping.DampingField`, built once, at least
-#: 32 exact samples and 3 checks, within a thousandth of rtol of the exact matrices) instead
-#: of an eigenproblem per instant, where the field is cheaper
-#: (:func:`kedfem.fe.modal_damping.field_over_cycle`); so does every level of a solve of
-#: several levels (the slider-crank at rtol 1e-4: 35 eigenproblems instead of 252 for levels
-#: 12/24/48; one solve on 48 elements: 35 instead of 144)
-FIELD_INSTANTS = 70
 #: a DOF is stiff for the exact split of the exponential holds when the links' axial
 #: stiffness carries at least this share of its diagonal stiffness at every instant
 AXIAL_SHARE = 0.9
@@ -396,7 +388,10 @@ class _Run:
         edges = snapped_edges(n, self.scene.period, self.breaks()) if self.scheme.graded else None
         ti = self.scheme.instants(n, self.scene.period, edges)
         several = self.scene.steps is None or self.scene.estimate
-        field = self.damping_field(n, several) if (ti.size >= FIELD_INSTANTS or several) else None
+        # modal damping from the cycle's interpolated field where it is cheaper than an eigenproblem
+        # per instant (kedfem.fe.modal_damping.field_over_cycle: the slider-crank at rtol 1e-4, 35
+        # eigenproblems instead of 252 for levels 12/24/48; one solve on 48 elements, 35 for 144)
+        field = self.damping_field(n, several)
         return ti, PeriodicProblem(self.scene, self.model, self.cycle, self.scheme, n, damping_field=field,
                                    stiff=self.stiff, edges=edges, kinks=self.breaks() if edges is not None else None)
 

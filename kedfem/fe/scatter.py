@@ -87,6 +87,9 @@ class Scatter:
 
     def _scatter_parts(self, gname: str, terms: ActiveTerms, out: np.ndarray, matrix: bool) -> np.ndarray:
         """Scatter :class:`ActiveTerms` into ``out`` (nt, N, N) or (nt, N)."""
+        if not out.flags.c_contiguous:  # the entries must land in out itself, not in a copy
+            out += self._scatter_parts(gname, terms, np.zeros(out.shape), matrix)
+            return out
         flat = out.reshape(terms.nt, -1)
         for rows, cols, data in terms.parts:
             idx, starts, targets = (self._sub_operator if matrix else self._sub_vector_operator)(gname, cols)
