@@ -381,6 +381,11 @@ class _Run:
                 self._obs = {k: v for k, v in self._obs.items() if k[0] != i}
             else:
                 self._failed_problems[lv.n] = (ti, prob)
+                # its time counts now (a later backfill reuses the problem as counted)
+                self.levels[i] = dataclasses.replace(
+                    lv, kinematics=lv.kinematics + (0.0 if reused else prob.kinematics),
+                    assembly=lv.assembly + prob.assembly - (a0 if reused else 0.0),
+                    solve=lv.solve + time.perf_counter() - t0 - (prob.assembly - a0))
 
     def problem(self, n: int):
         """``(instants, PeriodicProblem)`` of the level on ``n`` time elements (modal damping from

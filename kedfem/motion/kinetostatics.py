@@ -377,7 +377,7 @@ def _solve_square(mech, A, b, n_eq, n_unk):
     probes = _probes(n_eq)
     try:
         # one batched LU for the solution and two probe vectors: ||A^-1 v|| / ||v|| over random
-        # signs v estimates the smallest singular value's reciprocal (a third of the cost of
+        # v estimates the smallest singular value's reciprocal (a third of the cost of
         # the inverse, a ninth of a batched SVD)
         X = np.linalg.solve(A, np.concatenate([b[..., None], np.broadcast_to(probes, A.shape[:1] + probes.shape)],
                                               axis=2))
@@ -397,17 +397,21 @@ def _solve_square(mech, A, b, n_eq, n_unk):
 
 
 def _probes(n: int) -> np.ndarray:
-    """Two fixed vectors of random signs, shape (n, 2), for :func:`condition_estimate`."""
-    return np.random.default_rng(20261127).choice([-1.0, 1.0], size=(n, 2))
+    """Two fixed Gaussian random vectors, shape (n, 2), for :func:`condition_estimate`.
+
+    Gaussian, not random signs: a near-null direction with a few entries of equal size (two
+    equations nearly the same, a redundant support) is orthogonal to a sign vector about one
+    time in four, and never exactly to a Gaussian one."""
+    return np.random.default_rng(20261127).standard_normal((n, 2))
 
 
 def condition_estimate(A: np.ndarray, Y: np.ndarray, probes: np.ndarray) -> np.ndarray:
     """2-norm condition numbers of a batch of square matrices, estimated from solves with probes.
 
-    For a nearly singular ``A = U S V^T``, ``A^-1 v ~ v_min (u_min . v) / s_min``: over a vector
-    ``v`` of ``n`` random signs, ``|u_min . v|`` is about 1 and ``||v|| = sqrt(n)``, so
-    ``sqrt(n) ||A^-1 v|| / ||v||`` is about ``1 / s_min`` (the larger of two probes; below it
-    only where both are nearly orthogonal to ``u_min``). Times the Frobenius norm, an upper
+    For a nearly singular ``A = U S V^T``, ``A^-1 v ~ v_min (u_min . v) / s_min``: over a
+    Gaussian vector ``v`` of ``n`` entries, ``|u_min . v|`` is about 1 and ``||v||`` about
+    ``sqrt(n)``, so ``sqrt(n) ||A^-1 v|| / ||v||`` is about ``1 / s_min`` (the larger of two
+    probes; below it by 100x only where both are, a chance of about 1e-4). Times the Frobenius norm, an upper
     bound of ``s_max``, it is the condition number to within a small factor.
 
     Parameters
