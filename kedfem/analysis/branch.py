@@ -39,13 +39,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InstabilityWarning, KedError, UnboundedResponseError
-from ..fe.modal_damping import DampingField, PiecewiseDampingField, field_over_cycle
-from ..fe.slots import node_crossings
-from ..fe.damping import ModalDamping
-from ..fe.assembler import Assembler
 from ..fe.model import FEModel
 from ..motion.kinematics import Cycle
-from .problem import PeriodicProblem
+from .problem import PeriodicProblem, damping_field
 
 __all__ = ["Family", "Point", "Crossing", "Tracker", "damping_field", "classify", "in_unit", "MAX_POINTS"]
 
@@ -78,20 +74,6 @@ ON_CIRCLE = 1e-9
 REAL_TOL = 1e-6
 
 _FAILURES = (KedError, np.linalg.LinAlgError, FloatingPointError)
-
-
-def damping_field(scene, model, cycle, instants: int = 0) -> DampingField | PiecewiseDampingField | None:
-    """The scene's modal damping over the cycle for a problem read at ``instants`` instants
-    (:func:`kedfem.fe.modal_damping.field_over_cycle`: between the kinks where a block crosses
-    a node of its link; None for other damping, or where an eigenproblem per instant is cheaper)."""
-    if not isinstance(scene.damping, ModalDamping):
-        return None
-
-    def exact(t):
-        asm = Assembler(model, cycle.at(t), (), damping=scene.damping)
-        return asm.damping_matrix(*asm.structural())
-
-    return field_over_cycle(exact, scene.period, node_crossings(model, cycle, scene.period), instants, scene.rtol)
 
 
 class Family:

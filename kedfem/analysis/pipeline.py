@@ -30,10 +30,9 @@ from . import accuracy
 from ..solvers import schemes
 from ..fe.model import FEModel
 from ..fe.assembler import Assembler
-from ..fe.damping import ModalDamping
 from ..errors import AccuracyWarning, EffectWarning, InputError
 from ..motion.kinematics import Cycle, kinematics
-from ..fe.modal_damping import DampingField, PiecewiseDampingField, field_over_cycle
+from ..fe.modal_damping import DampingField, PiecewiseDampingField
 from ..fe.slots import node_crossings
 from ..fe.effects.loads import idle_loads, load_breaks, load_force
 from ..motion.profiles import distinct_instants
@@ -41,7 +40,7 @@ from ..fe.effects import unsimulated
 from ..solvers.nonlinear import PREDICT_FRACTION, PREDICT_MAX_CHANGE
 from ..solvers.threads import one_blas_thread
 from .plausibility import check_passive_links, check_result
-from .problem import PeriodicProblem, constant_or_sampled, snapped_edges
+from .problem import PeriodicProblem, constant_or_sampled, damping_field, snapped_edges
 from .results import PeriodicResult, Sampler, Stability, Timings, stability_verdict
 from .scene import MAX_STEPS, Scene
 
@@ -295,19 +294,13 @@ class _Run:
         """
         sc = self.scene
         self.breaks()
-        if not isinstance(sc.damping, ModalDamping):
-            return None
         if self._field is None:
-            def exact(t):
-                asm = Assembler(self.model, self.cycle.at(t), (), damping=sc.damping)
-                return asm.damping_matrix(*asm.structural())
-
-            serves = (7 if several else 1) * self.scheme.stages * n
-            field = field_over_cycle(exact, sc.period, self._node_breaks, serves, sc.rtol)
+            field = damping_field(sc, self.model, self.cycle, (7 if several else 1) * self.scheme.stages * n,
+                                  kinks=self._node_breaks)
             if isinstance(field, PiecewiseDampingField):
                 log.info("%s: modal damping between %d kinks from %d exact matrices (degrees %s, check %.1e)",
                          sc.mech.name, field.degrees.size, field.samples, field.degrees.tolist(), field.error)
-            self._field = False if field is None else field  # False: exact matrices at every instant
+            self._field = False if field is None else field  # False: none, or exact matrices at every instant
         return self._field or None
 
     # ---------------------------------------------------------------- levels
@@ -372,20 +365,20 @@ class _Run:
             ti, prob = self._failed_problems.pop(lv.n, None) or self.problem(lv.n)
             t0, a0 = time.perf_counter(), prob.assembly
             out = prob.solve(fine.discrete.at(ti), eps=eps, max_iter=sc.max_iter, method=sc.nonlinear_method)
+            # this attempt's time, counted whether it converges or not (a later backfill reuses the
+            # problem as counted)
+            timed = dataclasses.replace(lv, kinematics=lv.kinematics + (0.0 if reused else prob.kinematics),
+                                        assembly=lv.assembly + prob.assembly - (a0 if reused else 0.0),
+                                        solve=lv.solve + time.perf_counter() - t0 - (prob.assembly - a0))
             if out.converged:
                 log.info("%s: level n=%d solved again from level n=%d", sc.mech.name, lv.n, fine.n)
-                self.levels[i] = _Level(lv.n, out.discrete, True, lv.iterations + out.iterations, out.history,
-                                        lv.kinematics + (0.0 if reused else prob.kinematics),
-                                        lv.assembly + prob.assembly - (a0 if reused else 0.0),
-                                        lv.solve + time.perf_counter() - t0 - (prob.assembly - a0), out.caught)
+                self.levels[i] = dataclasses.replace(
+                    timed, discrete=out.discrete, converged=True, iterations=lv.iterations + out.iterations,
+                    history=out.history, caught=out.caught, predicted=None)
                 self._obs = {k: v for k, v in self._obs.items() if k[0] != i}
             else:
                 self._failed_problems[lv.n] = (ti, prob)
-                # its time counts now (a later backfill reuses the problem as counted)
-                self.levels[i] = dataclasses.replace(
-                    lv, kinematics=lv.kinematics + (0.0 if reused else prob.kinematics),
-                    assembly=lv.assembly + prob.assembly - (a0 if reused else 0.0),
-                    solve=lv.solve + time.perf_counter() - t0 - (prob.assembly - a0))
+                self.levels[i] = timed
 
     def problem(self, n: int):
         """``(instants, PeriodicProblem)`` of the level on ``n`` time elements (modal damping from

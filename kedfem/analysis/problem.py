@@ -28,6 +28,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..fe.assembler import Assembler
+from ..fe.damping import ModalDamping
+from ..fe.modal_damping import DampingField, PiecewiseDampingField, field_over_cycle
+from ..fe.slots import node_crossings
 from ..solvers import collocation, schemes
 from ..solvers.nonlinear import fixed_point, fixed_point_or_anderson, newton
 
@@ -101,6 +104,26 @@ class _Chunks:
 
     def Q(self, idx):
         return self._get(idx).Q
+
+
+def damping_field(scene, model, cycle, instants: int, kinks=None) -> DampingField | PiecewiseDampingField | None:
+    """The scene's modal damping over the cycle for problems read at ``instants`` instants in all
+    (:func:`kedfem.fe.modal_damping.field_over_cycle`: between the kinks where a block crosses
+    a node of its link); None for other damping, or where an eigenproblem per instant is cheaper.
+
+    ``kinks``: those instants [s], when the caller has them (default
+    :func:`kedfem.fe.slots.node_crossings`).
+    """
+    if not isinstance(scene.damping, ModalDamping):
+        return None
+
+    def exact(t):
+        asm = Assembler(model, cycle.at(t), (), damping=scene.damping)
+        return asm.damping_matrix(*asm.structural())
+
+    if kinks is None:
+        kinks = node_crossings(model, cycle, scene.period)
+    return field_over_cycle(exact, scene.period, kinks, instants, scene.rtol)
 
 
 def constant_or_sampled(X: np.ndarray) -> np.ndarray:

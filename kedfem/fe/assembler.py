@@ -22,7 +22,7 @@ from ..motion.kinematics import Motion
 from ..motion.kinetostatics import JointForces, kinetostatics, link_axial_force
 from .maps import GroupMap
 from .model import FEModel
-from .scatter import ACTIVE_WIDTH, ActiveTerms
+from .scatter import ACTIVE_WIDTH, ActiveTerms, column_patterns
 from .damping import ModalDamping, Rayleigh, check_damping, damping_matrix
 from . import effects as registry
 from .effects.base import BeamKinematics, Chunk, Effect, GroupTerms, StateTerms, slice_motion
@@ -254,18 +254,12 @@ class Assembler:
         for X in (gm.E1, gm.E2):
             if X is not None:
                 act = act | (X != 0.0).any(axis=(1, 2)) if X.shape[0] == nt else act | (X != 0.0).any(axis=(0, 1, 2))
-        patterns, which = np.unique(act, axis=0, return_inverse=True)
-        which = np.ravel(which)
         parts: dict[str, list] = {}
 
         def rows_of(X, rows):
             return X if X is None or X.shape[0] != nt else X[rows]
 
-        for k, pat in enumerate(patterns):
-            cols = np.flatnonzero(pat)
-            rows = np.flatnonzero(which == k)
-            if not cols.size:
-                continue
+        for rows, cols in column_patterns(act):
             sub = GroupMap(gm.cols[:, cols], rows_of(gm.E, rows)[..., cols],
                            *(None if X is None else rows_of(X, rows)[..., cols] for X in (gm.E1, gm.E2)),
                            *(rows_of(X, rows) for X in (gm.p, gm.p1, gm.p2)))

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["Scatter", "ACTIVE_WIDTH", "ActiveTerms"]
+__all__ = ["Scatter", "ACTIVE_WIDTH", "ActiveTerms", "column_patterns"]
 
 #: element matrices at least this wide are scattered by the columns each instant uses (the
 #: elements and point masses at a block carry the columns of every node of the member it
@@ -32,6 +32,14 @@ class ActiveTerms:
 
     nt: int
     parts: tuple
+
+
+def column_patterns(active: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Instants alike in the element columns they use: ``[(rows, cols), ...]`` from ``active``
+    (nt, m) booleans, patterns without a column left out."""
+    patterns, which = np.unique(active, axis=0, return_inverse=True)
+    which = np.ravel(which)
+    return [(np.flatnonzero(which == k), np.flatnonzero(pat)) for k, pat in enumerate(patterns) if pat.any()]
 
 
 def _plan(flat_targets, keep):
@@ -107,23 +115,10 @@ class Scatter:
         scattered together through a plan for those columns alone; the entries left out are
         zeros, so the sums are those of the full scatter.
         """
-        nt, _n_el, m, _m = data.shape
         nz = data != 0.0
         active = nz.any(axis=(1, 2)) | nz.any(axis=(1, 3))  # (nt, m)
-        patterns, which = np.unique(active, axis=0, return_inverse=True)
-        which = np.ravel(which)
-        N = self.n_dof
-        flat_out = out.reshape(nt, N * N)
-        for k, pat in enumerate(patterns):
-            cols = np.flatnonzero(pat)
-            if not cols.size:
-                continue
-            rows = np.flatnonzero(which == k)
-            sub = data[rows][:, :, cols][:, :, :, cols]
-            idx, starts, targets = self._sub_operator(gname, cols)
-            if idx.size:
-                flat_out[rows[:, None], targets[None, :]] += np.add.reduceat(
-                    sub.reshape(rows.size, -1)[:, idx], starts, axis=1)
+        parts = tuple((rows, cols, data[rows][:, :, cols][:, :, :, cols]) for rows, cols in column_patterns(active))
+        self._scatter_parts(gname, ActiveTerms(data.shape[0], parts), out, True)
 
     @staticmethod
     def _segment_add(plan, data2d, out2d):

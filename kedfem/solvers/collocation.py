@@ -345,9 +345,21 @@ class _Elements:
         if K.ndim == 2:
             K = np.broadcast_to(K, (s, N, N))
             C = np.broadcast_to(C, (s, N, N))
-            return -np.concatenate([K, C + (float(h) * tab.c)[:, None, None] * K], axis=-1)
-        hc = np.asarray(h, dtype=float)[:, None, None, None] * tab.c[None, :, None, None]
-        return -np.concatenate([K, C + hc * K], axis=-1)
+            hc = (float(h) * tab.c)[:, None, None]
+        else:
+            hc = np.asarray(h, dtype=float)[:, None, None, None] * tab.c[None, :, None, None]
+        return self._neg_R_into(C, K, hc, np.empty(K.shape[:-1] + (2 * N,)))
+
+    @staticmethod
+    def _neg_R_into(C, K, hc, out):
+        """``out[..., :2N] = -[K_j, C_j + h c_j K_j]`` (``hc`` the ``h c_j`` broadcast to ``K``)."""
+        N = K.shape[-1]
+        np.negative(K, out=out[..., :N])
+        right = out[..., N:2 * N]
+        np.multiply(hc, K, out=right)
+        right += C
+        np.negative(right, out=right)
+        return out
 
     def _ops(self, a, b):
         """``X = W^-1 [-R | q]`` per element, shape (L, sN, 2N + 1)."""
@@ -379,13 +391,8 @@ class _Elements:
 
             def work(i, lo, hi):
                 W = self._W(Mb[lo:hi], Cb[lo:hi], Kb[lo:hi], h[lo:hi])
-                # [-R | q] written in place: -R_j = -[K_j, C_j + h c_j K_j] (see _R)
-                rhs = np.empty((hi - lo, s, N, 2 * N + 1))
-                np.negative(Kb[lo:hi], out=rhs[..., :N])
-                right = rhs[..., N:2 * N]
-                np.multiply(hc[lo:hi], Kb[lo:hi], out=right)
-                right += Cb[lo:hi]
-                np.negative(right, out=right)
+                rhs = np.empty((hi - lo, s, N, 2 * N + 1))  # [-R | q], written in place
+                self._neg_R_into(Cb[lo:hi], Kb[lo:hi], hc[lo:hi], rhs)
                 rhs[..., 2 * N] = Q[lo:hi]
                 X[lo:hi] = np.linalg.solve(W, rhs.reshape(hi - lo, s * N, 2 * N + 1))
 
