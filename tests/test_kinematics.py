@@ -172,3 +172,27 @@ def test_point_on_member_moves_rigidly():
     np.testing.assert_allclose(r, 0.5 * (mo.position("A") + mo.position("B")), atol=1e-12)
     np.testing.assert_allclose(v, 0.5 * (mo.velocity("A") + mo.velocity("B")), atol=1e-9)
     np.testing.assert_allclose(a, 0.5 * (mo.acceleration("A") + mo.acceleration("B")), atol=1e-7)
+
+
+@pytest.mark.parametrize("name", ["four_bar", "six_bar", "whitworth", "inverted_slider_crank"])
+def test_strided_coarse_march_equals_the_full_march(name, monkeypatch):
+    """The coarse grid marched through every third instant, the rest solved together from the
+    Hermite interpolant, is the continuation through every instant to round-off; where the
+    instants between do not settle near the interpolant (a stride of 12 on the Whitworth, whose
+    block swings the lever by more than the branch-jump guard allows) the full march is used."""
+    from kedfem.motion import kinematics as kin
+    m = mechanisms.build(name)
+    strided = kin.Cycle(m)
+    monkeypatch.setattr(kin.Cycle, "STRIDE", 1)
+    full = kin.Cycle(m)
+    scale = np.abs(full.ydc).max()
+    assert np.abs(strided.yc - full.yc).max() < 1e-11
+    assert np.abs(strided.ydc - full.ydc).max() < 1e-11 * scale
+    monkeypatch.setattr(kin.Cycle, "STRIDE", 12)
+    calls = []
+    real = kin._march
+    monkeypatch.setattr(kin, "_march", lambda model, tt, *a, **k: calls.append(tt.size) or real(model, tt, *a, **k))
+    wide = kin.Cycle(m)
+    assert np.abs(wide.yc - full.yc).max() < 1e-11
+    if name == "whitworth":
+        assert calls == [3, 36]  # the marched instants, then the fallback through all of them

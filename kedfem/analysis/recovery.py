@@ -152,9 +152,12 @@ def element_loads(d, dd, ddd, *, L, rhoA, s1, omega, alpha, a_loc, g_loc=None, N
     """
     if np.ndim(L) == 0:  # one element length
         Nf = el.shape_functions(L, LOAD_POINTS)[0]  # (4, 2, 6)
-        u = np.einsum("pij,tej->tepi", Nf, d)
-        ud = np.einsum("pij,tej->tepi", Nf, dd)
-        udd = np.einsum("pij,tej->tepi", Nf, ddd)
+        Nt = Nf.reshape(-1, Nf.shape[-1]).T  # (6, 8): one product per rate
+
+        def interp(x):
+            return (x @ Nt).reshape(x.shape[:-1] + Nf.shape[:2])
+
+        u, ud, udd = interp(d), interp(dd), interp(ddd)
         Lx = L
     else:  # an element length each
         Nf = el.shape_functions(L, LOAD_POINTS)  # (ne, 4, 2, 6)
@@ -179,7 +182,7 @@ def element_loads(d, dd, ddd, *, L, rhoA, s1, omega, alpha, a_loc, g_loc=None, N
     if N is not None:
         if np.ndim(L) == 0:
             B = el.shape_curvatures(L, LOAD_POINTS)[0]  # (4, 6)
-            q = q + N[..., None] * np.einsum("pi,tei->tep", B, d)
+            q = q + N[..., None] * (d @ B.T)
         else:
             B = el.shape_curvatures(L, LOAD_POINTS)  # (ne, 4, 6)
             q = q + N[..., None] * np.einsum("epi,tei->tep", B, d)
@@ -212,7 +215,7 @@ def section_forces(d, q, p, *, L, EA, EI, xi, N_h=None):
     """
     if np.ndim(L) == 0:  # one element length
         B = el.shape_curvatures(L, xi)[0]  # (nx, 6)
-        M = EI * np.einsum("xi,tei->tex", B, d)
+        M = EI * (d @ B.T)
         Lx = L
     else:  # an element length each
         B = el.shape_curvatures(L, xi)  # (ne, nx, 6)
@@ -224,6 +227,6 @@ def section_forces(d, q, p, *, L, EA, EI, xi, N_h=None):
     N = np.broadcast_to(N_h[..., None], M.shape).copy()
     if q is not None:
         W, Wn = fixed_end_maps(xi)
-        M = M + Lx * Lx * np.einsum("xp,tep->tex", W, q)
-        N = N + Lx * np.einsum("xp,tep->tex", Wn, p)
+        M = M + Lx * Lx * (q @ W.T)
+        N = N + Lx * (p @ Wn.T)
     return M, N

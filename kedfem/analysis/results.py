@@ -44,10 +44,10 @@ class Sampler:
         falls on it).
         """
         period = self.discrete.period
-        if "grid" not in self._acc:
+        if "coef" not in self._acc:
             n_el = int(getattr(self.discrete, "n", 0) or 0)
             F = 1 << int(math.ceil(math.log2(max(ACCELERATION_SAMPLES, 16 * n_el))))
-            _U, V = self.discrete.at(np.arange(F) * (period / F))
+            V = self.discrete.velocities(np.arange(F) * (period / F))
             C = np.fft.rfft(V, axis=0) / F
             k = np.arange(C.shape[0], dtype=float)
             w = np.full(k.size, 2.0)
@@ -55,23 +55,27 @@ class Sampler:
             w[-1] = 0.0  # the Nyquist harmonic of the even grid has no derivative
             # a(t) = Re(sum_k C_k exp(i k w t)): the derivative of the (one-sided) series of V
             C = C * (w * 1j * (2.0 * math.pi / period) * k)[:, None]
-            half = np.where(k > 0, 0.5, 1.0)[:, None]
             self._acc["coef"] = C
             self._acc["F"] = F
-            self._acc["grid"] = np.fft.irfft(C * half * F, n=F, axis=0)
         F, C = self._acc["F"], self._acc["coef"]
         t = np.mod(np.asarray(t, dtype=float), period)
         x = t * (F / period)
         k = np.rint(x)
         if np.all(np.abs(x - k) < 1e-7):
+            if "grid" not in self._acc:
+                half = np.where(np.arange(C.shape[0]) > 0, 0.5, 1.0)[:, None]
+                self._acc["grid"] = np.fft.irfft(C * half * F, n=F, axis=0)
             return self._acc["grid"][k.astype(int) % F]
         M = t.size
         if M >= 8 and np.allclose(np.diff(t), period / M, rtol=1e-9, atol=0.0):
-            # a uniform grid: the series folded onto M points, one inverse FFT
+            # a uniform grid: the series folded onto M points (harmonic k onto k mod M, summed in
+            # the order of k), one inverse FFT
             kk = np.arange(C.shape[0])
             shifted = C * np.exp(1j * (2.0 * math.pi / period) * t[0] * kk)[:, None]
-            folded = np.zeros((M, C.shape[1]), dtype=complex)
-            np.add.at(folded, kk % M, shifted)
+            rows = -(-kk.size // M) * M
+            padded = np.zeros((rows, C.shape[1]), dtype=complex)
+            padded[:kk.size] = shifted
+            folded = padded.reshape(rows // M, M, C.shape[1]).sum(axis=0)
             return (np.fft.ifft(folded, axis=0) * M).real
         # exp(i k w t) by products of exp(i w t): a quarter of the time of an exponential per
         # entry, within 1e-12 of it over the 1025 harmonics of the default grid

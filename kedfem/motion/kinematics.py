@@ -572,6 +572,9 @@ class Cycle:
 
     #: steps of the coarse continuation grid
     COARSE = 36
+    #: the continuation marches through every STRIDE-th instant of the coarse grid; the others
+    #: are solved together from the marched ones (:func:`_coarse_march`)
+    STRIDE = 3
 
     def __init__(self, mechanism: Mechanism):
         model = _LoopModel(mechanism)
@@ -590,14 +593,12 @@ class Cycle:
         n_c = self.COARSE
         self.h = h = period / n_c
         self.tc = tc = np.arange(n_c + 1) * h
-        yc = np.vstack([y0[None], _march(model, tc[1:], y0, tol)])
+        yc = _coarse_march(model, tc, y0, tol, cols, self.STRIDE)
         self.yc = yc
         if cols.size:
             theta, sl = _split(model, yc, model.drive_angles(tc))
             model.check_slots(sl, model.drive_angles(tc)[:, 0])
-            omega, sd, _al, _sdd = _rates(model, theta, sl, np.broadcast_to(
-                model.drive_speed, (tc.size, model.drive_idx.size)), cols)
-            self.ydc = np.concatenate([omega[:, model.free_members], sd], axis=1)
+            self.ydc = _unknown_rates(model, theta, sl, cols)
         else:
             self.ydc = np.zeros_like(yc)
         # close the cycle: continuing to t = T must return to the reference configuration
@@ -676,6 +677,68 @@ class Cycle:
         y[end] = self.yc[-1]  # the end of the cycle (angles continued, not wrapped)
         crank = self.model.drive_angles(t)[:, 0]
         return _motion(self.model, t, crank, y, period)
+
+
+def _unknown_rates(model, theta, s, cols):
+    """Rates (n, n_unknowns) of the unknown coordinates at configurations ``theta``, ``s`` (n, ...)."""
+    omega, sd, _al, _sdd = _rates(model, theta, s, np.broadcast_to(
+        model.drive_speed, (theta.shape[0], model.drive_idx.size)), cols)
+    return np.concatenate([omega[:, model.free_members], sd], axis=1)
+
+
+def _coarse_march(model, tc, y0, tol, cols, stride):
+    """Positions (n_c + 1, n_unknowns) on the coarse grid ``tc`` (``tc[0] = 0`` at ``y0``).
+
+    The continuation (:func:`_march`, with its step halving and its guards against toggles and
+    branch jumps) goes through every ``stride``-th instant; the instants between are solved
+    together by Newton's method from the cubic Hermite interpolant of the marched positions and
+    their exact rates. Where that does not settle to the tolerance close to the interpolant
+    (within the branch-jump guard of a continuation step), at a well-conditioned configuration,
+    the continuation goes through every instant instead.
+    """
+    n_c = tc.size - 1
+    if stride <= 1 or not cols.size or n_c % stride:
+        return np.vstack([y0[None], _march(model, tc[1:], y0, tol)])
+    tm = tc[::stride]
+    ym = np.vstack([y0[None], _march(model, tm[1:], y0, tol)])
+    ydm = _unknown_rates(model, *_split(model, ym, model.drive_angles(tm)), cols)
+    # the instants between: cubic Hermite guesses from the marched interval they are in
+    j = np.arange(1, n_c)
+    j = j[j % stride != 0]
+    k = j // stride
+    hm = tm[1] - tm[0]
+    u = ((tc[j] - tm[k]) / hm)[:, None]
+    guess = ((2 * u**3 - 3 * u**2 + 1) * ym[k] + (u**3 - 2 * u**2 + u) * hm * ydm[k]
+             + (-2 * u**3 + 3 * u**2) * ym[k + 1] + (u**3 - u**2) * hm * ydm[k + 1])
+    thd = model.drive_angles(tc[j])
+    y = guess.copy()
+    ok = False
+    for _ in range(8):
+        theta, s = _split(model, y, thd)
+        w = model.edge_vectors(theta, s)
+        res = model.residual(theta, s, w)
+        if np.max(np.abs(res)) <= tol:
+            ok = True
+            break
+        J = model.jacobian(theta, s, w)[:, :, cols]
+        try:
+            y = y + np.linalg.solve(J, -res[..., None])[..., 0]
+        except np.linalg.LinAlgError:
+            break
+    if ok:
+        nf = model.free_members.size
+        step = np.max(np.abs(ym[k + 1, :nf] - ym[k, :nf]), axis=1, initial=0.0)
+        jump = np.max(np.abs(y - guess), axis=1)
+        cond = np.linalg.cond(model.jacobian(*_split(model, y, thd))[:, :, cols])
+        ok = bool(np.all(jump <= 0.05 + 0.5 * step) and np.all(np.isfinite(cond)) and np.all(cond <= 1e10))
+    if not ok:
+        log.debug("kinematics: the coarse grid between the marched instants did not settle; "
+                  "marching through all of it")
+        return np.vstack([y0[None], _march(model, tc[1:], y0, tol)])
+    yc = np.empty((n_c + 1, y0.size))
+    yc[::stride] = ym
+    yc[j] = y
+    return yc
 
 
 def _march(model, targets_t, y0, tol, max_depth=8):

@@ -237,6 +237,11 @@ class CollocationSolution:
         return out[:, :N], out[:, N:]
 
 
+    def velocities(self, t) -> np.ndarray:
+        """Velocities (k, N) at instants ``t`` (k,) [s] (the collocation polynomial of ``v`` alone)."""
+        return dense(self.scheme, self.V, self.stage_V, self.period, t, self.edges)
+
+
 def dense(name: str, Z: np.ndarray, stages: np.ndarray, period: float, t, edges=None) -> np.ndarray:
     """Evaluate the collocation polynomials at instants ``t``.
 

@@ -86,6 +86,7 @@ class Discrete:
     raw: Any
     _at: Callable = None
     _instant_states: Callable = None
+    _velocities: Callable | None = None
 
     @property
     def spectral_radius(self) -> float:
@@ -96,6 +97,14 @@ class Discrete:
     def at(self, t) -> tuple[np.ndarray, np.ndarray]:
         """Displacements and velocities at instants ``t`` [s], each (k, N)."""
         return self._at(np.asarray(t, dtype=float))
+
+    def velocities(self, t) -> np.ndarray:
+        """Velocities (k, N) at instants ``t`` (k,) [s] (the second half of :meth:`at`, alone where
+        the scheme reads it alone)."""
+        t = np.asarray(t, dtype=float)
+        if self._velocities is not None:
+            return self._velocities(t)
+        return self._at(t)[1]
 
     def instant_states(self) -> tuple[np.ndarray, np.ndarray]:
         """Displacements and velocities at the scheme's instants, each (n_i, N)."""
@@ -282,7 +291,8 @@ class Collocation(Scheme):
         s = self.stages
         return Discrete(self.name, n, period, sol.U, sol.V, sol.floquet_multipliers,
                         bool(sol.stable), float(sol.residual), sol.method, sol, sol.at,
-                        lambda: (sol.stage_U.reshape(n * s, N), sol.stage_V.reshape(n * s, N)))
+                        lambda: (sol.stage_U.reshape(n * s, N), sol.stage_V.reshape(n * s, N)),
+                        sol.velocities)
 
 
 class Fourier(Scheme):
