@@ -18,7 +18,9 @@ def scene(rpm, **kw):
     return info("four_bar").scene({}, speed=rpm * RPM, **kw)
 
 
-def test_newton_converges_quadratically_from_a_neighbour():
+def test_newton_converges_quadratically_from_a_neighbour(monkeypatch):
+    from kedfem.analysis import problem
+    monkeypatch.setattr(problem, "CHORD_CHANGE", 0.0)  # full Newton steps only: the tangent's own rate
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         base = kf.solve(scene(300, steps=48, estimate=False))
@@ -72,10 +74,13 @@ def test_the_command_line_exits_non_zero_and_writes_no_peaks(tmp_path):
     assert not list(tmp_path.rglob("peaks.csv"))
 
 
-def test_newton_stops_on_the_rate_of_a_coarser_level():
+def test_newton_stops_on_the_rate_of_a_coarser_level(monkeypatch):
     """A finer level's Newton stops on a change whose successor the coarser level's rate predicts
-    below eps / 10, one solve early, and the response it returns is that close to the solution."""
+    below eps / 10, one solve early, and the response it returns is that close to the solution
+    (full Newton steps: a chord step's solution is not stopped on a prediction)."""
+    from kedfem.analysis import problem
     from kedfem.analysis.pipeline import _Run
+    monkeypatch.setattr(problem, "CHORD_CHANGE", 0.0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         run = _Run(scene(200))
@@ -112,3 +117,54 @@ def test_a_continuation_starts_from_the_given_start():
     a = np.array([[p.deflection, p.stress] for p in given.peaks()])
     b = np.array([[p.deflection, p.stress] for p in alone.peaks()])
     assert np.max(np.abs(a / b - 1)) < 1e-6
+
+
+def test_chord_steps_reach_newtons_solution_with_fewer_factorisations(monkeypatch):
+    """Once a full Newton solve changes the response by at most CHORD_CHANGE, the steps after it
+    are chord steps on its kept factorisations: the same solution to the tolerance, fewer
+    factorisations. With CHORD_RHO below the orbit's spectral radius every step is full."""
+    from kedfem.analysis import problem
+    from kedfem.analysis.pipeline import _Run
+    from kedfem.solvers import collocation
+    factorised = []
+    real = collocation.solve
+    monkeypatch.setattr(collocation, "solve",
+                        lambda *a, **k: factorised.append(1) or real(*a, **k))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        run = _Run(scene(200))
+        ti, coarse = run.problem(48)
+        x0 = coarse.solve(None, eps=1e-4, max_iter=30).discrete.at(run.problem(96)[0])
+        out = {}
+        for label, change, rho in (("chord", problem.CHORD_CHANGE, problem.CHORD_RHO),
+                                   ("full", 0.0, problem.CHORD_RHO), ("near limit", problem.CHORD_CHANGE, 0.0)):
+            monkeypatch.setattr(problem, "CHORD_CHANGE", change)
+            monkeypatch.setattr(problem, "CHORD_RHO", rho)
+            ti, fine = run.problem(96)
+            factorised.clear()
+            s = fine.solve(x0, eps=1e-10, max_iter=30)
+            out[label] = (s, len(factorised), fine.chord_steps)
+    (chord, n_chord, steps), (full, n_full, none), (near, n_near, none2) = out.values()
+    assert chord.converged and full.converged and near.converged
+    assert steps >= 1 and none == 0 and none2 == 0
+    assert n_chord < n_full and n_near == n_full, (n_chord, n_full, n_near)
+    U, Uf = chord.discrete.at(ti)[0], full.discrete.at(ti)[0]
+    assert np.linalg.norm(U - Uf) <= 1e-8 * np.linalg.norm(Uf)
+
+
+def test_chord_steps_keep_the_solve_and_its_stability_error(monkeypatch):
+    """kf.solve with chord steps against full Newton steps: the same peaks to the iteration's
+    tolerance, and the spectral radius of the frozen tangents within the printed error (the
+    lag of a level's tangent shrinks with the change between levels, as its error does)."""
+    from kedfem.analysis import problem
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        chord = kf.solve(scene(250))
+        monkeypatch.setattr(problem, "CHORD_CHANGE", 0.0)
+        full = kf.solve(scene(250))
+    assert chord.converged and full.converged and chord.elements == full.elements
+    for a, b in zip(chord.peaks(), full.peaks()):
+        assert abs(a.stress - b.stress) <= 1e-5 * b.stress and abs(a.deflection - b.deflection) <= 1e-5 * b.deflection
+    st, sf = chord.stability, full.stability
+    assert st.verdict == sf.verdict == "stable"
+    assert abs(st.spectral_radius - sf.spectral_radius) <= st.error, (st, sf)

@@ -335,3 +335,31 @@ def test_an_undamped_scene_is_marginal_not_stable():
     res = kf.solve(kf.Scene(m, effects=("inertia", "coupling"), damping=None))
     assert res.stability.verdict == "marginal" and "undamped" in res.stability.note
     assert not res.stable
+
+
+@pytest.mark.parametrize("name", ["radau3", "radau2"])
+def test_kept_factorisations_solve_another_load_and_move_the_multipliers(name):
+    """A collocation solve that keeps its factorisations (``factors=True``) solves a second load
+    as a fresh solve does, to round-off; and its multipliers for a changed ``C, K`` (first order,
+    :meth:`Resolver.multipliers`) are within the square of the change of the changed system's
+    own, where the frozen ones are off by the change itself."""
+    from kedfem.solvers import collocation
+    n = 40
+    ti = collocation.instants(name, n, T).ravel()
+    first = collocation.solve(M0, C0, K(ti), Q(ti), T, name, factors=True)
+    assert collocation.solve(M0, C0, K(ti), Q(ti), T, name).resolver is None
+    Q2 = np.stack([np.cos(3 * W * ti) ** 2, np.sin(W * ti) ** 3], axis=-1)
+    again, fresh = first.resolver.solve(Q2), collocation.solve(M0, C0, K(ti), Q2, T, name)
+    for a, b in ((again.U, fresh.U), (again.V, fresh.V), (again.stage_U, fresh.stage_U)):
+        assert np.abs(a - b).max() <= 1e-12 * np.abs(b).max()
+    errs = []
+    for eps in (1e-2, 1e-3):
+        dK = eps * K1[None] * np.sin(2 * W * ti)[:, None, None]
+        dC = np.broadcast_to(0.5 * eps * C0, dK.shape)
+        exact = collocation.solve(M0, C0 + dC, K(ti) + dK, Q(ti), T, name).floquet_multipliers
+        moved = first.resolver.multipliers(dC, dK)
+        rho = np.abs(exact).max()
+        frozen = abs(np.abs(first.floquet_multipliers).max() - rho)
+        errs.append(abs(np.abs(moved).max() - rho))
+        assert errs[-1] <= 0.05 * frozen
+    assert errs[1] <= errs[0] / 30  # second order: 100x for a 10x smaller change

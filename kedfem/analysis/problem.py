@@ -20,6 +20,7 @@ at the problem's instants, ``x = (U, V)``, each ``(n_i, N)``.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 import warnings
@@ -40,6 +41,15 @@ log = logging.getLogger(__name__)
 
 #: above this many bytes for the (n, N, N) matrices of a linear scene, assemble chunk by chunk
 STREAM_BYTES = 400e6
+#: a full Newton solve whose change (relative) is at most this keeps its factorisations, and the
+#: steps after it are chord steps on its tangent (:meth:`PeriodicProblem.step`)
+CHORD_CHANGE = 0.05
+#: a chord step must shrink the change by at least this factor; else the next step is a full one
+CHORD_CONTRACTION = 0.25
+#: chord steps only on an orbit whose spectral radius is at most this: the multipliers of a chord
+#: step are those of the tangent it froze (an iterate up to CHORD_CHANGE away); near the
+#: stability limit, where their digits decide a verdict, every step is a full solve
+CHORD_RHO = 0.9
 
 
 @dataclass(frozen=True)
@@ -198,6 +208,20 @@ def snapped_edges(n: int, period: float, breaks) -> np.ndarray | None:
     return edges
 
 
+def _minus(a, b):
+    """``a - b`` of two optional state terms (None: zero)."""
+    if a is None and b is None:
+        return None
+    return (0.0 if a is None else a) - (0.0 if b is None else b)
+
+
+def _relative_change(U, Un) -> float:
+    """``||Un - U|| / ||Un||`` (the non-linear iterations' change, Eq. 21)."""
+    nn = float(np.linalg.norm(Un))
+    dd = float(np.linalg.norm(Un - U))
+    return 0.0 if dd == 0.0 else (dd / nn if nn > 0 else np.inf)
+
+
 class PeriodicProblem:
     """A scene discretised on ``n`` time elements (see the module docstring).
 
@@ -273,6 +297,9 @@ class PeriodicProblem:
             self.options["edges"] = self.edges
         self._terms = None
         self._D = None
+        self._chord = None  # (resolver, change, dC, dK) of the last full solve, for chord steps
+        self._frozen: dict = {}  # id of a chord step's solution -> (resolver, dC - dC0, dK - dK0)
+        self.chord_steps = 0
         self.kinematics = tb - ta
         self.assembly = time.perf_counter() - tb
 
@@ -325,12 +352,71 @@ class PeriodicProblem:
         """
         terms = self.terms
         dC, dK, dQ = self.assembler.state_terms(U, V)
+        if self._chord is not None:
+            out = self._chord_step(U, V, dC, dK, dQ)
+            if out is not None:
+                return out
+        options = dict(self.options, factors=True) if self.has_residual else self.options
         d = self.scheme.solve(terms.M, terms.C, terms.K, terms.Q, self.period, self.n, dC=dC, dK=dK, dQ=dQ,
-                              **self.options)
+                              **options)
         if isinstance(self.scheme, schemes.Collocation):
             self.options["check_mass"] = False  # the state terms have no dM and the terms are assembled once:
             # M is checked on this problem's first solve only
-        return (d,) + d.instant_states()
+        Un, Vn = d.instant_states()
+        change = _relative_change(U, Un)
+        self._chord = ((d.resolver, change, dC, dK) if d.resolver is not None and change <= CHORD_CHANGE
+                       and d.spectral_radius <= CHORD_RHO else None)
+        if d.resolver is not None:
+            d = dataclasses.replace(d, resolver=None)
+        return d, Un, Vn
+
+    def _chord_step(self, U, V, dC, dK, dQ):
+        """``G(x)`` by a chord step: the correction ``-J_0^-1 F(x)`` with the tangent ``J_0`` of
+        the last full solve (its factorisations kept), ``F(x)`` the residual of the discrete
+        equations with the state terms about ``x``. Its fixed point is Newton's; it converges
+        linearly at a rate of about the distance from the factorised tangent's iterate (a
+        change of at most :data:`CHORD_CHANGE`), for a triangular solve per element instead
+        of a factorisation. None (a full step is due) when the last chord step did not shrink
+        the change by :data:`CHORD_CONTRACTION`, or its result is not finite.
+        """
+        resolver, last, dC0, dK0 = self._chord
+        terms = self.terms
+        Ct, Kt, Qt = schemes.with_state_terms(terms.C, terms.K, terms.Q, dC, dK, dQ)
+        r = collocation.residual(terms.M, Ct, Kt, Qt, U, V, self.period, self.scheme.name, edges=self.edges)
+        delta = resolver.solve(-r)
+        n, s = self.n, self.scheme.stages
+        SU = U.reshape(n, s, -1) + delta.stage_U
+        SV = V.reshape(n, s, -1) + delta.stage_V
+        if not (np.all(np.isfinite(SU)) and np.all(np.isfinite(SV))):
+            self._chord = None
+            return None
+        # element starts: the last stage of the element before (a stiffly accurate scheme)
+        sol = dataclasses.replace(delta, U=np.roll(SU[:, -1], 1, axis=0), V=np.roll(SV[:, -1], 1, axis=0),
+                                  stage_U=SU, stage_V=SV, resolver=None)
+        d = dataclasses.replace(self.scheme.discrete(sol), chord=True)
+        Un, Vn = d.instant_states()
+        change = _relative_change(U, Un)
+        self.chord_steps += 1
+        self._frozen[id(sol)] = (resolver, _minus(dC, dC0), _minus(dK, dK0))
+        self._chord = (resolver, change, dC0, dK0) if change <= CHORD_CONTRACTION * last else None
+        return d, Un, Vn
+
+    def _orbit_multipliers(self, solved: Solved) -> Solved:
+        """A solve that ended on a chord step, with the multipliers of the tangent about its last
+        iterate instead of the frozen one's (:meth:`kedfem.solvers.collocation.Resolver.multipliers`,
+        to first order in the tangent's change: the square of a change of at most
+        :data:`CHORD_CHANGE`)."""
+        d = solved.discrete
+        frozen = self._frozen.get(id(d.raw)) if getattr(d, "chord", False) else None
+        self._frozen.clear()
+        if frozen is None:
+            return solved
+        resolver, dC, dK = frozen
+        mu = resolver.multipliers(dC, dK)
+        rho = float(np.abs(mu).max()) if mu.size else 0.0
+        raw = dataclasses.replace(d.raw, floquet_multipliers=mu, stable=bool(rho < 1.0))
+        d = dataclasses.replace(self.scheme.discrete(raw), chord=True)
+        return dataclasses.replace(solved, discrete=d)
 
     @property
     def has_residual(self) -> bool:
@@ -383,12 +469,14 @@ class PeriodicProblem:
             if method == "newton":
                 out = newton(self.step, self.instants.size, self.N, self.period, eps=eps, max_iter=max_iter,
                              x0=x0, merit=merit, rate=rate)
-                return Solved(out.solution, bool(out.converged), len(out.history),
-                              tuple(float(h) for h in out.history), method, list(caught), out.rate, out.predicted)
+                return self._orbit_multipliers(Solved(
+                    out.solution, bool(out.converged), len(out.history), tuple(float(h) for h in out.history),
+                    method, list(caught), out.rate, out.predicted))
             d, hist, converged, used = fixed_point_or_anderson(
                 self.step, self.instants.size, self.N, self.period, eps=eps, max_iter=max_iter, method=method,
                 x0=x0, merit=merit)
-        return Solved(d, bool(converged), len(hist), tuple(float(h) for h in hist), used, list(caught))
+        return self._orbit_multipliers(Solved(d, bool(converged), len(hist), tuple(float(h) for h in hist),
+                                              used, list(caught)))
 
     def polish(self, solved: Solved, *, eps: float, max_iter: int, rate=None) -> Solved:
         """Iterate a solve on to a tighter ``eps`` from where it stopped.
@@ -415,10 +503,12 @@ class PeriodicProblem:
             if solved.method == "newton":
                 out = newton(self.step, self.instants.size, self.N, self.period, eps=eps, max_iter=max_iter,
                              x0=x0, merit=self.merit if self.has_residual else None, rate=rate)
-                return Solved(out.solution, bool(out.converged), solved.iterations + len(out.history),
-                              solved.history + tuple(float(h) for h in out.history), solved.method,
-                              list(caught), out.rate or solved.rate, out.predicted)
+                return self._orbit_multipliers(Solved(
+                    out.solution, bool(out.converged), solved.iterations + len(out.history),
+                    solved.history + tuple(float(h) for h in out.history), solved.method,
+                    list(caught), out.rate or solved.rate, out.predicted))
             d, hist, conv, _m = fixed_point(self.step, self.instants.size, self.N, self.period, eps=eps,
                                             max_iter=max_iter, method=solved.method, x0=x0)
-        return Solved(d, bool(conv), solved.iterations + len(hist),
-                      solved.history + tuple(float(h) for h in hist), solved.method, list(caught))
+        return self._orbit_multipliers(Solved(d, bool(conv), solved.iterations + len(hist),
+                                              solved.history + tuple(float(h) for h in hist), solved.method,
+                                              list(caught)))

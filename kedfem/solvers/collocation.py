@@ -39,6 +39,7 @@ The response between element ends is the collocation polynomial of degree
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 from dataclasses import dataclass, field
@@ -202,6 +203,7 @@ class CollocationSolution:
     passes: int
     timings: Mapping[str, float] = field(default_factory=dict)
     edges: np.ndarray | None = None
+    resolver: "Resolver | None" = field(default=None, repr=False, compare=False)
 
     @property
     def n(self) -> int:
@@ -240,6 +242,132 @@ class CollocationSolution:
     def velocities(self, t) -> np.ndarray:
         """Velocities (k, N) at instants ``t`` (k,) [s] (the collocation polynomial of ``v`` alone)."""
         return dense(self.scheme, self.V, self.stage_V, self.period, t, self.edges)
+
+
+class Resolver:
+    """Another load on a solved collocation system: the same ``M, C, K`` and elements.
+
+    Keeps the elements' LU factorisations of their stage matrices and the condensed cyclic
+    system of a :func:`solve` (``factors=True``). A new load costs one triangular solve per
+    element and two marches of the element transitions (``O(n (sN)^2)``), instead of the
+    factorisations and products of a solve (``O(n (sN)^3)``): the correction of a chord
+    (simplified Newton) step with a frozen tangent, a second right-hand side.
+    """
+
+    def __init__(self, elems: "_Elements", cyclic, base: "CollocationSolution"):
+        self._elems = elems
+        self._cyclic = cyclic
+        self._base = base
+
+    def solve(self, Q) -> "CollocationSolution":
+        """The periodic response to the load ``Q`` (n s, N) [N] at the collocation instants.
+
+        Returns
+        -------
+        CollocationSolution
+            Multipliers, condition and method are those of the factorised system.
+        """
+        t0 = time.perf_counter()
+        el, base = self._elems, self._base
+        n, s, N = el.n, el.tab.s, el.N
+        Q = np.asarray(Q, dtype=float).reshape(n, s, N)
+        with one_blas_thread():
+            parts = [el.load(a, b, Q[a:b]) for a, b in el.bounds()]
+            Z, residual = self._cyclic.solve([p for p, _ in parts])
+            SU = np.empty((n, s, N))
+            SV = np.empty((n, s, N))
+            for (a, b), (_p, Xq) in zip(el.bounds(), parts):
+                SU[a:b], SV[a:b] = el.stages(a, b, Z[a:b], Xq)
+        timings = MappingProxyType({"total": time.perf_counter() - t0})
+        return dataclasses.replace(base, U=Z[:, :N].copy(), V=Z[:, N:].copy(), stage_U=SU, stage_V=SV,
+                                   residual=float(residual), passes=0, timings=timings, resolver=self)
+
+    def multipliers(self, dC=None, dK=None, lead: int = 4) -> np.ndarray:
+        """Floquet multipliers of the system with ``C + dC``, ``K + dK``, to first order in them.
+
+        The leading ``lead`` multipliers ``mu`` of the factorised monodromy ``Phi`` move by
+        ``w^H dPhi v / w^H v`` (``v``, ``w`` its right and left eigenvectors), with
+        ``dPhi v = sum_k P_{n-1}..P_{k+1} dP_k P_{k-1}..P_0 v`` and each element's ``dP_k`` from
+        ``W^-1 (d(-R) z - dW a)``: a march of ``v`` forward and of ``w`` backward through the
+        kept transitions, and a triangular solve per element. The others are returned as they
+        were. For a tangent frozen at an iterate near the solution (a chord step): the
+        multipliers of the orbit's own tangent, with an error of the order of the square of the
+        change.
+
+        Parameters
+        ----------
+        dC, dK : ndarray, shape (n s, N, N), optional
+            Changes of ``C`` [N s/m] and ``K`` [N/m] at the collocation instants.
+        lead : int
+            Multipliers corrected (by decreasing modulus).
+
+        Returns
+        -------
+        ndarray of complex, shape (2N,)
+            By decreasing modulus.
+        """
+        el, base = self._elems, self._base
+        tab, n, N = el.tab, el.n, el.N
+        s, m = tab.s, 2 * N
+        mu0 = base.floquet_multipliers
+        if dC is None and dK is None:
+            return mu0
+        lam, wl, vr = sla.eig(base.monodromy, left=True, right=True)
+        order = np.argsort(-np.abs(lam), kind="stable")
+        q = min(lead, m)
+        mod = np.abs(lam[order])
+        while q < m and mod[q] >= mod[q - 1] * (1.0 - 1e-9):  # not half of a conjugate pair
+            q += 1
+        top = order[:q]
+        lam, v, w = lam[top], vr[:, top], wl[:, top]
+        with one_blas_thread():
+            # forward r_k = P_{k-1}..P_0 v and backward l_k^H = w^H P_{n-1}..P_{k+1}
+            R = np.empty((n, m, q), dtype=complex)
+            Lt = np.empty((n, m, q), dtype=complex)
+            P = [(a, b, A) for (a, b), A in zip(self._cyclic.bounds, self._cyclic.A)]
+            r = v
+            for a, b, A in P:
+                for k in range(a, b):
+                    R[k] = r
+                    r = (A if A.ndim == 2 else A[k - a]) @ r
+            lk = w
+            for a, b, A in reversed(P):
+                for k in range(b - 1, a - 1, -1):
+                    Lt[k] = lk
+                    lk = (A if A.ndim == 2 else A[k - a]).T @ lk
+            dlam = np.zeros(q, dtype=complex)
+            zero = np.zeros((s, N, N))
+            for a, b in el.bounds():
+                L = b - a
+                h = el.h[a:b]
+                X = el._ops(a, b)[..., :m]  # W^-1 (-R), (L, sN, 2N)
+                acc = (X @ R[a:b]).reshape(L, s, N, q)
+                Ua = h[:, None, None, None] * np.einsum("jl,klnq->kjnq", tab.A, acc)
+                Uaa = (h * h)[:, None, None, None] * np.einsum("jl,klnq->kjnq", tab.A2, acc)
+                u, vv = R[a:b, None, :N], R[a:b, None, N:]
+                dCk = zero[None] if dC is None else dC[a * s:b * s].reshape(L, s, N, N)
+                dKk = zero[None] if dK is None else dK[a * s:b * s].reshape(L, s, N, N)
+                hc = h[:, None, None, None] * tab.c[None, :, None, None]
+                rhs = -(dKk @ (u + hc * vv + Uaa) + dCk @ (vv + Ua))  # (L, s, N, q)
+                rhs = rhs.reshape(L, s * N, q)
+                if el.invariant:
+                    lu = el._inv[0]
+                    da = np.stack([sla.lu_solve(lu, x.reshape(s * N, -1), check_finite=False)
+                                   for x in (rhs.real, rhs.imag)])
+                else:
+                    lu, piv = el._lu[(a, b)]
+                    da = np.stack([sla.lu_solve((lu, piv), x, check_finite=False) for x in (rhs.real, rhs.imag)])
+                da = (da[0] + 1j * da[1]).reshape(L, s, N, q)
+                du = (h * h)[:, None, None] * np.einsum("j,kjnq->knq", tab.bA, da)
+                dv = h[:, None, None] * np.einsum("j,kjnq->knq", tab.b, da)
+                dPr = np.concatenate([du, dv], axis=1)  # (L, 2N, q)
+                dlam += np.einsum("kmq,kmq->q", Lt[a:b].conj(), dPr)
+        wv = np.einsum("mq,mq->q", w.conj(), v)
+        out = mu0.copy()
+        new = lam + dlam / wv
+        # the corrected ones in place of the leading ones, sorted again by modulus
+        out[:q] = new
+        return out[np.argsort(-np.abs(out), kind="stable")]
 
 
 def dense(name: str, Z: np.ndarray, stages: np.ndarray, period: float, t, edges=None) -> np.ndarray:
@@ -308,6 +436,9 @@ class _Elements:
         self._inv = None
         self._kept: dict[tuple[int, int], np.ndarray] = {}
         self.keep_ops = False
+        #: keep each element's LU of ``W`` for other loads (:class:`Resolver`)
+        self.keep_lu = False
+        self._lu: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
 
     def bounds(self):
         for a in range(0, self.n, self.chunk):
@@ -394,14 +525,29 @@ class _Elements:
             Mb, Cb, Kb = (np.broadcast_to(X_, (L, s, N, N)) if X_.ndim == 2 else X_ for X_ in (M, C, K))
             hc = h[:, None, None, None] * tab.c[None, :, None, None]
 
+            keep_lu = self.keep_lu
+            if keep_lu:
+                lus = np.empty((L, s * N, s * N))
+                pivs = np.empty((L, s * N), dtype=np.int32)
+
             def work(i, lo, hi):
                 W = self._W(Mb[lo:hi], Cb[lo:hi], Kb[lo:hi], h[lo:hi])
                 rhs = np.empty((hi - lo, s, N, 2 * N + 1))  # [-R | q], written in place
                 self._neg_R_into(Cb[lo:hi], Kb[lo:hi], hc[lo:hi], rhs)
                 rhs[..., 2 * N] = Q[lo:hi]
-                X[lo:hi] = np.linalg.solve(W, rhs.reshape(hi - lo, s * N, 2 * N + 1))
+                rhs = rhs.reshape(hi - lo, s * N, 2 * N + 1)
+                if keep_lu:  # the same LAPACK factorisation as solve's, kept
+                    lu, piv = sla.lu_factor(W, overwrite_a=True, check_finite=False)
+                    if np.any(np.diagonal(lu, axis1=-2, axis2=-1) == 0.0):
+                        raise np.linalg.LinAlgError("Singular matrix")
+                    lus[lo:hi], pivs[lo:hi] = lu, piv
+                    X[lo:hi] = sla.lu_solve((lu, piv), rhs, check_finite=False)
+                else:
+                    X[lo:hi] = np.linalg.solve(W, rhs)
 
             _run_parallel(work, _split(L, self.workers))
+            if keep_lu:
+                self._lu[key] = (lus, pivs)
         if self.keep_ops:
             self._kept[key] = X
         return X
@@ -424,13 +570,31 @@ class _Elements:
             return P[0], p
         return P, p
 
-    def stages(self, a, b, Z):
-        """Stage states ``(U_j, V_j)`` of elements ``a..b-1`` from their start states Z (L, 2N)."""
+    def load(self, a, b, Q):
+        """Forced parts ``p`` (L, 2N) of elements ``a..b-1`` for another load ``Q`` (L, s, N)
+        at their instants, and ``W^-1 Q`` (L, s N): the kept factorisations, no new one."""
+        tab, N, s = self.tab, self.N, self.tab.s
+        L = b - a
+        q = np.asarray(Q, dtype=float).reshape(L, s * N)
+        if self.invariant:
+            Xq = sla.lu_solve(self._inv[0], q.T, check_finite=False).T
+        else:
+            lu, piv = self._lu[(a, b)]
+            Xq = sla.lu_solve((lu, piv), q[..., None], check_finite=False)[..., 0]
+        h = self.h[a:b]
+        Y = np.matmul(np.stack([tab.bA, tab.b]), Xq.reshape(L, s, N))  # (L, 2, N)
+        p = np.concatenate([(h * h)[:, None] * Y[:, 0], h[:, None] * Y[:, 1]], axis=1)
+        return p, Xq
+
+    def stages(self, a, b, Z, Xq=None):
+        """Stage states ``(U_j, V_j)`` of elements ``a..b-1`` from their start states Z (L, 2N)
+        (``Xq``: ``W^-1 Q`` of another load, :meth:`load`)."""
         tab, N, s = self.tab, self.N, self.tab.s
         h = self.h[a:b, None, None]
         L = b - a
         X = self._ops(a, b).reshape(L, s, N, 2 * N + 1)
-        acc = np.einsum("ljnk,lk->ljn", X[..., :2 * N], Z) + X[..., 2 * N]
+        forced = X[..., 2 * N] if Xq is None else Xq.reshape(L, s, N)
+        acc = np.einsum("ljnk,lk->ljn", X[..., :2 * N], Z) + forced
         u0, v0 = Z[:, None, :N], Z[:, None, N:]
         V = v0 + h * np.einsum("jl,kln->kjn", tab.A, acc)
         U = u0 + h * tab.c[None, :, None] * v0 + h * h * np.einsum("jl,kln->kjn", tab.A2, acc)
@@ -482,7 +646,7 @@ def residual(M, C, K, Q, U, V, period: float, scheme: str = "radau3", edges=None
     ns, N = U.shape
     n = ns // s
     h = np.full(n, period / n) if edges is None else np.diff(np.asarray(edges, dtype=float))
-    Ue, Ve = U.reshape(n, s, N), V.reshape(n, s, N)
+    Ve = V.reshape(n, s, N)
     v0 = np.roll(Ve[:, -1], 1, axis=0)
     acc = np.einsum("jl,kln->kjn", _inverse_A(scheme), Ve - v0[:, None]) / h[:, None, None]
     acc = acc.reshape(ns, N)
@@ -529,7 +693,7 @@ def _resolve(name, Ms, Cs, Ks, Qs, n, s):
 def solve(M, C, K, Q, period: float, scheme: str = "radau3", *, n: int | None = None,
           edges=None, method: str = "auto", memory_budget: float = 256e6,
           max_condition: float = MAX_CONDITION, workers: int | None = None,
-          check_mass: bool = True) -> CollocationSolution:
+          check_mass: bool = True, factors: bool = False) -> CollocationSolution:
     """Periodic steady state of ``M u'' + C u' + K u = Q`` by collocation time elements.
 
     Parameters
@@ -554,6 +718,11 @@ def solve(M, C, K, Q, period: float, scheme: str = "radau3", *, n: int | None = 
         Check that ``M`` is positive definite at every instant (a Cholesky factorisation each);
         False for a caller that solved with the same ``M`` before (the iterations of a
         non-linear solve).
+    factors : bool
+        Keep the factorisations for other loads on the same system (the solution's
+        :attr:`~CollocationSolution.resolver`, a :class:`Resolver`), where they fit a quarter
+        of ``memory_budget`` and the system is condensed (not solved by the sparse LU of an
+        unstable or ill-conditioned cycle); otherwise ``resolver`` is None.
 
     Returns
     -------
@@ -587,11 +756,13 @@ def solve(M, C, K, Q, period: float, scheme: str = "radau3", *, n: int | None = 
     elems = _Elements(tab, Ms, Cs, Ks, Qs, n, N, period, int(workers), edges, check_mass=bool(check_mass))
     ops_bytes = n * s * N * (2 * N + 1) * 8
     elems.keep_ops = ops_bytes <= memory_budget / 4
+    elems.keep_lu = bool(factors) and elems.keep_ops and n * (s * N) ** 2 * 8 <= memory_budget / 4
     per_element = 8.0 * (3 * (s * N) ** 2 + 4 * s * N * (2 * N + 1) + 3 * s * N * N)
     timings: dict[str, float] = {}
     with one_blas_thread():
         cyc = solve_cyclic(elems, per_element, method=method, memory_budget=memory_budget,
-                           max_condition=max_condition, timings=timings, t_start=t_start)
+                           max_condition=max_condition, timings=timings, t_start=t_start,
+                           factors=elems.keep_lu)
         t0 = time.perf_counter()
         SU = np.empty((n, s, N))
         SV = np.empty((n, s, N))
@@ -601,10 +772,13 @@ def solve(M, C, K, Q, period: float, scheme: str = "radau3", *, n: int | None = 
     timings["total"] = time.perf_counter() - t_start
     log.info("collocation.solve(%s): n=%d N=%d rho=%.4g %.3f s", scheme, n, N,
              float(np.abs(cyc.multipliers).max()) if cyc.multipliers.size else 0.0, timings["total"])
-    return CollocationSolution(
+    sol = CollocationSolution(
         t=np.arange(n) * (period / n) if edges is None else edges[:-1].copy(),
         U=cyc.Z[:, :N].copy(), V=cyc.Z[:, N:].copy(),
         stage_U=SU, stage_V=SV, scheme=scheme, floquet_multipliers=cyc.multipliers,
         stable=cyc.stable, residual=cyc.residual, monodromy=cyc.monodromy, method=cyc.method,
         period=period, condition=cyc.condition, passes=cyc.passes + (0 if elems.keep_ops else 1),
         timings=MappingProxyType(timings), edges=edges)
+    if cyc.factors is not None:
+        sol = dataclasses.replace(sol, resolver=Resolver(elems, cyc.factors, sol))
+    return sol

@@ -410,6 +410,11 @@ def fixed_point(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter
     return sol, history, converged, message
 
 
+def _chord(solution) -> bool:
+    """The solution was made by a chord step (a frozen tangent), not by Newton's."""
+    return bool(getattr(solution, "chord", False))
+
+
 def newton(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter: int = 50,
            x0: tuple[np.ndarray, np.ndarray] | None = None, merit=None,
            lambda_min: float = NEWTON_LAMBDA_MIN, warn: bool = True,
@@ -502,10 +507,13 @@ def newton(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter: int
             return math.inf
         return max(rate.predict(change), seen.predict(change) if seen is not None else 0.0)
 
-    def settled(change, at, step):
-        """``change`` (of the iterate ``at``, whose solve is ``at + step``) ends the iteration."""
+    def settled(change, at, step, solution):
+        """``change`` (of the iterate ``at``, whose solve ``solution`` is ``at + step``) ends the
+        iteration. A chord step's solution is not Newton's: only a change below ``eps`` ends it."""
         if change <= eps:
             return True
+        if _chord(solution):
+            return False
         guess = predicted(change)
         if not guess <= PREDICT_FRACTION * eps:
             return False
@@ -526,7 +534,7 @@ def newton(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter: int
     # for a step or two); the best iterate is kept and the line search starts from it if not
     best = (rel(dU, nU), x, sol, d, dU, nU)
     watched = 0
-    while watched < WATCHDOG and solves < max_iter and not settled(best[0], best[1], best[3]):
+    while watched < WATCHDOG and solves < max_iter and not settled(best[0], best[1], best[3], best[2]):
         history.append(rel(dU, nU))
         xt = x + d
         solves += 1
@@ -538,7 +546,8 @@ def newton(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter: int
         ct = rel(dUt, nUt)
         if not math.isfinite(ct) or ct > WATCHDOG_GROWTH * best[0]:
             break
-        seen = NewtonRate.observed(history[-1], ct) or seen
+        if not _chord(sol):  # the rate of Newton's own steps, not of a chord step's
+            seen = NewtonRate.observed(history[-1], ct) or seen
         x, sol, d, dU, nU = xt, st, dt, dUt, nUt
         if ct < best[0]:
             best = (ct, x, sol, d, dU, nU)
@@ -558,7 +567,7 @@ def newton(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter: int
             converged = True
             message = f"converged after {solves} linear solves (change {change:.2e} <= eps {eps:.1e})"
             break
-        if settled(change, x, d):
+        if settled(change, x, d, sol):
             converged, guess = True, predicted(change)
             message = (f"converged after {solves} linear solves (change {change:.2e}; Newton's rate "
                        f"predicts the next below {guess:.1e} <= {PREDICT_FRACTION:g} eps {eps:.1e})")
@@ -606,7 +615,7 @@ def newton(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter: int
             except UnboundedResponseError as exc:
                 message = f"the linear solve about an accepted iterate is unbounded ({exc})"
                 break
-        last = change if lam == 1.0 else None
+        last = change if lam == 1.0 and not _chord(sol) else None
         x, sol, d, dU, nU, phi = xt, st, dt, dUt, nUt, phit
     if not converged and warn:
         warnings.warn(f"non-linear iteration (newton): {message}", ConvergenceWarning, stacklevel=3)

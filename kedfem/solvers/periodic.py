@@ -883,11 +883,62 @@ class CyclicSolution:
     method: str
     condition: float
     passes: int
+    factors: "CyclicFactors | None" = None
+
+
+@dataclass(frozen=True)
+class CyclicFactors:
+    """The condensed transitions of a solved block-cyclic system, kept for other loads.
+
+    ``z_{k+1} = A_k z_k + b'_k``, ``z_n = z_0`` with the same ``A_k`` and new ``b'_k``: one march
+    from zero gives the particular part, ``I - Phi`` (balanced, as the first solve) gives ``z_0``,
+    and a second march the states: ``2 n`` products ``A_k z`` instead of the transitions'
+    computation and condensation.
+
+    Attributes
+    ----------
+    bounds : tuple of (int, int)
+        The chunks ``(a, b)`` of elements.
+    A : tuple of ndarray
+        Per chunk, its ``A_k`` (L, m, m), or the one ``A`` (m, m) when invariant.
+    ImP, Bal, dsc : ndarray
+        ``I - Phi`` and its balanced form and scaling (:func:`_balanced_condition`).
+    a_norm2 : float
+        ``sum_k ||A_k||_F**2``.
+    """
+
+    bounds: tuple
+    A: tuple
+    ImP: np.ndarray
+    Bal: np.ndarray
+    dsc: np.ndarray
+    a_norm2: float
+
+    def solve(self, b: list) -> tuple[np.ndarray, float]:
+        """Periodic states for the forced parts ``b`` (per chunk, (L, m)).
+
+        Returns
+        -------
+        Z : ndarray, shape (n, m)
+            States at the element starts.
+        residual : float
+            Normwise relative residual of the cyclic system (as :func:`solve_cyclic`).
+        """
+        n, m = self.bounds[-1][1], self.ImP.shape[0]
+        Z = np.empty((n, m))
+        chunks = [(a, e, A, bb) for (a, e), A, bb in zip(self.bounds, self.A, b)]
+        d = _march(chunks, np.zeros(m), Z)
+        z0 = _solve_z0(self.ImP, self.Bal, self.dsc, d)
+        z_end = _march(chunks, z0, Z)
+        rnorm = float(np.linalg.norm(z_end - Z[0]))
+        bnorm2 = sum(float(np.sum(bb * bb)) for bb in b)
+        denom = math.sqrt(self.a_norm2 + n * m) * float(np.linalg.norm(Z)) + math.sqrt(bnorm2)
+        return Z, (rnorm / denom if denom > 0 else 0.0)
 
 
 def solve_cyclic(elems, per_element: float, *, method: str = "auto", memory_budget: float = 256e6,
                  max_condition: float = MAX_CONDITION, timings: dict | None = None,
-                 t_start: float | None = None) -> CyclicSolution:
+                 t_start: float | None = None, factors: bool = False) -> CyclicSolution:
     """Periodic states of ``z_{k+1} = A_k z_k + b_k``, ``z_n = z_0``, and its Floquet analysis.
 
     The block-cyclic system of any one-step time discretisation (the
@@ -909,6 +960,9 @@ def solve_cyclic(elems, per_element: float, *, method: str = "auto", memory_budg
         As in :func:`solve`.
     timings : dict, optional
         Filled with the wall time of the phases [s].
+    factors : bool
+        Keep the condensed transitions for other loads (:class:`CyclicFactors`), where the
+        system was condensed with its transitions kept (not by the sparse LU, not streamed).
 
     Returns
     -------
@@ -959,8 +1013,11 @@ def solve_cyclic(elems, per_element: float, *, method: str = "auto", memory_budg
     timings["total"] = time.perf_counter() - t_start
     log.info("periodic: n=%d m=%d method=%s rho=%.6g cond=%.3g residual=%.2e (%.3f s)",
              n, m, method, rho, condition, residual, timings["total"])
+    kept = None
+    if factors and keep and method == "condensation":
+        kept = CyclicFactors(tuple(elems.bounds()), tuple(pass1.kept_A), ImP, Bal, dsc, pass1.a_norm2)
     return CyclicSolution(Z, mult, bool(rho < 1.0), float(residual), pass1.Phi, method,
-                          float(condition), 1 if keep else 2)
+                          float(condition), 1 if keep else 2, kept)
 
 
 # --------------------------------------------------------------------------

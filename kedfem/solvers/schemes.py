@@ -35,7 +35,8 @@ each instant (see ``docs/solver.md``).
 from __future__ import annotations
 
 import abc
-from dataclasses import dataclass
+import dataclasses
+from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import numpy as np
@@ -87,6 +88,12 @@ class Discrete:
     _at: Callable = None
     _instant_states: Callable = None
     _velocities: Callable | None = None
+    #: other loads on the same system (:class:`kedfem.solvers.collocation.Resolver`), when the
+    #: solve was asked to keep its factorisations; None otherwise
+    resolver: Any = field(default=None, repr=False, compare=False)
+    #: made by a chord step (:meth:`kedfem.analysis.problem.PeriodicProblem.step`): the correction
+    #: of a frozen tangent, whose multipliers are that tangent's
+    chord: bool = False
 
     @property
     def spectral_radius(self) -> float:
@@ -287,12 +294,19 @@ class Collocation(Scheme):
         options.pop("delta", None)  # no exponentials
         C, K, Q = with_state_terms(C, K, Q, dC, dK, dQ)
         sol = collocation.solve(M, C, K, Q, period, self.name, n=n, edges=edges, **options)
-        N = sol.U.shape[1]
+        resolver = sol.resolver
+        if resolver is not None:  # held by the Discrete only, not by the solution it reads
+            sol = dataclasses.replace(sol, resolver=None)
+        return self.discrete(sol, resolver)
+
+    def discrete(self, sol, resolver=None) -> Discrete:
+        """The :class:`Discrete` of a :class:`~kedfem.solvers.collocation.CollocationSolution`."""
+        n, N = sol.U.shape
         s = self.stages
-        return Discrete(self.name, n, period, sol.U, sol.V, sol.floquet_multipliers,
+        return Discrete(self.name, n, sol.period, sol.U, sol.V, sol.floquet_multipliers,
                         bool(sol.stable), float(sol.residual), sol.method, sol, sol.at,
                         lambda: (sol.stage_U.reshape(n * s, N), sol.stage_V.reshape(n * s, N)),
-                        sol.velocities)
+                        sol.velocities, resolver)
 
 
 class Fourier(Scheme):
