@@ -19,6 +19,10 @@ __all__ = ["factor", "quantity", "breaks", "distinct_instants", "SEARCH_SAMPLES"
 SEARCH_SAMPLES = 2048
 #: Newton steps that refine a bracketed crossing (each halves the bracket when it leaves it)
 REFINE_STEPS = 40
+#: a factor below this fraction of the table's largest is zero (no step at a dead centre there)
+ZERO_FACTOR = 1e-9
+#: a level crossing this close to a dead centre (fraction of the cycle) is at the dead centre
+SNAP = 1e-5
 
 
 def distinct_instants(t, period: float) -> np.ndarray:
@@ -82,22 +86,40 @@ def breaks(profile: Profile, cycle, period: float) -> np.ndarray:
     t = np.arange(SEARCH_SAMPLES) * (period / SEARCH_SAMPLES)
     q, rate = quantity(profile, cycle.at(t))
     found = [_crossings(profile, cycle, period, t, q, rate, float(x)) for x in levels]
-    if profile.stroke != "both":
-        # dead centres: the rate (the velocity along the axis) changes sign
-        def velocity(mo):
-            ax = np.asarray(profile.axis)
-            j = mo.joint_names.index(profile.joint)
-            return mo.v[:, j] @ ax, mo.a[:, j] @ ax
 
-        dc = _roots(velocity, cycle, period, t, rate, 0.0)
+    def velocity(mo):
+        ax = np.asarray(profile.axis)
+        j = mo.joint_names.index(profile.joint)
+        return mo.v[:, j] @ ax, mo.a[:, j] @ ax
+
+    # dead centres: the rate (the velocity along the axis) changes sign
+    dc = _roots(velocity, cycle, period, t, rate, 0.0) if (profile.stroke != "both" or profile.of == "position") \
+        else np.zeros(0)
+    if profile.of == "position" and dc.size:
+        # a level the position reaches at a dead centre is a double root there, found only to about
+        # the square root of round-off (2e-7 of the cycle either side): it is the dead centre
+        found = [_snap(x, dc, period) for x in found]
+    if profile.stroke != "both":
         if dc.size:
+            # a dead centre where the table's factor is zero to round-off does not step it (the
+            # position there is round-off away from the table's zero: 5e-44 or 0 by the digit)
             pos, _ = quantity(profile, cycle.at(dc))
-            dc = dc[profile.table(pos) != 0.0]
+            dc = dc[np.abs(profile.table(pos)) > ZERO_FACTOR * max(np.abs(profile.y), default=0.0)]
         found.append(dc)
     if not found:
         return np.zeros(0)
     out = np.sort(np.concatenate(found))
     return out
+
+
+def _snap(x: np.ndarray, centres: np.ndarray, period: float) -> np.ndarray:
+    """Instants ``x`` within :data:`SNAP` of the cycle of one of ``centres``, moved onto it."""
+    if not x.size:
+        return x
+    d = np.mod(x[:, None] - centres[None, :] + 0.5 * period, period) - 0.5 * period
+    k = np.argmin(np.abs(d), axis=1)
+    near = np.abs(d[np.arange(x.size), k]) <= SNAP * period
+    return np.where(near, centres[k], x)
 
 
 def _crossings(profile, cycle, period, t, q, rate, level) -> np.ndarray:
