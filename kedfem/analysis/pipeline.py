@@ -123,6 +123,7 @@ class _Level:
     solve: float
     caught: list
     predicted: float | None = None  # Newton stopped on this predicted next change (see Solved)
+    orbit: object = None  # the multipliers about the last iterate on demand (see Solved.orbit)
 
 
 def solve(scene: Scene, progress: bool | None = None, *, start=None) -> PeriodicResult:
@@ -338,7 +339,9 @@ class _Run:
         d = out.discrete
         t_solve = td - tc - (prob.assembly - a0)
         lv = _Level(n, d, out.converged, out.iterations, out.history, prob.kinematics, prob.assembly, t_solve,
-                    out.caught, out.predicted)
+                    out.caught, out.predicted, out.orbit)
+        # only the finest level's multipliers are made exact (its kept factorisations go with it)
+        self.levels = [dataclasses.replace(x, orbit=None) if x.orbit is not None else x for x in self.levels]
         log.info("%s: level n=%d (%s) %d iteration(s) rho=%.4g %.3f s", sc.mech.name, n, scheme.name,
                  out.iterations, d.spectral_radius, prob.kinematics + prob.assembly + t_solve)
         self.levels.append(lv)
@@ -649,7 +652,7 @@ class _Run:
         self.levels[-1] = dataclasses.replace(
             lv, discrete=out.discrete, converged=out.converged, iterations=out.iterations,
             history=out.history, solve=lv.solve + time.perf_counter() - t0, caught=out.caught,
-            predicted=out.predicted)
+            predicted=out.predicted, orbit=out.orbit)
         i = len(self.levels) - 1
         self._obs = {k: v for k, v in self._obs.items() if k[0] != i}
         self._continue = None
@@ -1097,6 +1100,10 @@ class _Run:
             if est is None and len(self.levels) >= 2:
                 est = self.estimate(n_out, need)
         final = self.levels[-1]
+        if final.orbit is not None:  # ended on a chord step: the multipliers of its own orbit
+            t0 = time.perf_counter()
+            final = self.levels[-1] = dataclasses.replace(final, discrete=final.orbit(), orbit=None,
+                                                          solve=final.solve + time.perf_counter() - t0)
         if not final.converged:
             raise self.failure(final)
         for w in final.caught:  # warnings of the result's own solve (coarse levels' are dropped)

@@ -76,6 +76,12 @@ class Solved:
     predicted : float or None
         Newton stopped on a predicted next change, this one (relative), instead of a last change
         below ``eps`` (see :func:`kedfem.solvers.nonlinear.newton`).
+    orbit : callable or None
+        For a solve that ended on a chord step: ``orbit()`` is :attr:`discrete` with the Floquet
+        multipliers of the tangent about its last iterate (to first order), where
+        :attr:`discrete` has those of the frozen tangent (an iterate up to
+        :data:`CHORD_CHANGE` away; at a spectral radius of at most :data:`CHORD_RHO`). None
+        otherwise.
     """
 
     discrete: object
@@ -86,6 +92,7 @@ class Solved:
     caught: list
     rate: object = None
     predicted: float | None = None
+    orbit: object = None
 
 
 class _Chunks:
@@ -402,21 +409,26 @@ class PeriodicProblem:
         return d, Un, Vn
 
     def _orbit_multipliers(self, solved: Solved) -> Solved:
-        """A solve that ended on a chord step, with the multipliers of the tangent about its last
-        iterate instead of the frozen one's (:meth:`kedfem.solvers.collocation.Resolver.multipliers`,
-        to first order in the tangent's change: the square of a change of at most
-        :data:`CHORD_CHANGE`)."""
+        """A solve that ended on a chord step, with :attr:`Solved.orbit`: the multipliers of the
+        tangent about its last iterate instead of the frozen one's, on demand
+        (:meth:`kedfem.solvers.collocation.Resolver.multipliers`, to first order in the
+        tangent's change: the square of a change of at most :data:`CHORD_CHANGE`; 10-25 ms on
+        192 elements, so only the result's level asks)."""
         d = solved.discrete
         frozen = self._frozen.get(id(d.raw)) if getattr(d, "chord", False) else None
         self._frozen.clear()
         if frozen is None:
             return solved
-        resolver, dC, dK = frozen
-        mu = resolver.multipliers(dC, dK)
-        rho = float(np.abs(mu).max()) if mu.size else 0.0
-        raw = dataclasses.replace(d.raw, floquet_multipliers=mu, stable=bool(rho < 1.0))
-        d = dataclasses.replace(self.scheme.discrete(raw), chord=True)
-        return dataclasses.replace(solved, discrete=d)
+        scheme = self.scheme
+
+        def orbit():
+            resolver, dC, dK = frozen
+            mu = resolver.multipliers(dC, dK)
+            rho = float(np.abs(mu).max()) if mu.size else 0.0
+            raw = dataclasses.replace(d.raw, floquet_multipliers=mu, stable=bool(rho < 1.0))
+            return dataclasses.replace(scheme.discrete(raw), chord=True)
+
+        return dataclasses.replace(solved, orbit=orbit)
 
     @property
     def has_residual(self) -> bool:

@@ -320,48 +320,54 @@ class Resolver:
             q += 1
         top = order[:q]
         lam, v, w = lam[top], vr[:, top], wl[:, top]
+        # complex vectors as real pairs of columns [re | im]: every operator here is real
+        v2 = np.concatenate([v.real, v.imag], axis=1)
+        w2 = np.concatenate([w.real, w.imag], axis=1)
         with one_blas_thread():
             # forward r_k = P_{k-1}..P_0 v and backward l_k^H = w^H P_{n-1}..P_{k+1}
-            R = np.empty((n, m, q), dtype=complex)
-            Lt = np.empty((n, m, q), dtype=complex)
+            R = np.empty((n, m, 2 * q))
+            Lt = np.empty((n, m, 2 * q))
             P = [(a, b, A) for (a, b), A in zip(self._cyclic.bounds, self._cyclic.A)]
-            r = v
+            r = v2
             for a, b, A in P:
                 for k in range(a, b):
                     R[k] = r
                     r = (A if A.ndim == 2 else A[k - a]) @ r
-            lk = w
+            lk = w2
             for a, b, A in reversed(P):
                 for k in range(b - 1, a - 1, -1):
                     Lt[k] = lk
                     lk = (A if A.ndim == 2 else A[k - a]).T @ lk
             dlam = np.zeros(q, dtype=complex)
-            zero = np.zeros((s, N, N))
             for a, b in el.bounds():
                 L = b - a
                 h = el.h[a:b]
                 X = el._ops(a, b)[..., :m]  # W^-1 (-R), (L, sN, 2N)
-                acc = (X @ R[a:b]).reshape(L, s, N, q)
+                acc = (X @ R[a:b]).reshape(L, s, N, 2 * q)
                 Ua = h[:, None, None, None] * np.einsum("jl,klnq->kjnq", tab.A, acc)
                 Uaa = (h * h)[:, None, None, None] * np.einsum("jl,klnq->kjnq", tab.A2, acc)
                 u, vv = R[a:b, None, :N], R[a:b, None, N:]
-                dCk = zero[None] if dC is None else dC[a * s:b * s].reshape(L, s, N, N)
-                dKk = zero[None] if dK is None else dK[a * s:b * s].reshape(L, s, N, N)
                 hc = h[:, None, None, None] * tab.c[None, :, None, None]
-                rhs = -(dKk @ (u + hc * vv + Uaa) + dCk @ (vv + Ua))  # (L, s, N, q)
-                rhs = rhs.reshape(L, s * N, q)
+                # d(-R) z - dW a: the stage forces of the changed C, K at the stage states
+                rhs = np.zeros((L, s, N, 2 * q))
+                if dK is not None:
+                    rhs -= dK[a * s:b * s].reshape(L, s, N, N) @ (u + hc * vv + Uaa)
+                if dC is not None:
+                    rhs -= dC[a * s:b * s].reshape(L, s, N, N) @ (vv + Ua)
+                rhs = rhs.reshape(L, s * N, 2 * q)
                 if el.invariant:
-                    lu = el._inv[0]
-                    da = np.stack([sla.lu_solve(lu, x.reshape(s * N, -1), check_finite=False)
-                                   for x in (rhs.real, rhs.imag)])
+                    da = sla.lu_solve(el._inv[0], rhs.transpose(1, 0, 2).reshape(s * N, -1),
+                                      check_finite=False).reshape(s * N, L, 2 * q).transpose(1, 0, 2)
                 else:
-                    lu, piv = el._lu[(a, b)]
-                    da = np.stack([sla.lu_solve((lu, piv), x, check_finite=False) for x in (rhs.real, rhs.imag)])
-                da = (da[0] + 1j * da[1]).reshape(L, s, N, q)
+                    da = sla.lu_solve(el._lu[(a, b)], rhs, check_finite=False)
+                da = da.reshape(L, s, N, 2 * q)
                 du = (h * h)[:, None, None] * np.einsum("j,kjnq->knq", tab.bA, da)
                 dv = h[:, None, None] * np.einsum("j,kjnq->knq", tab.b, da)
-                dPr = np.concatenate([du, dv], axis=1)  # (L, 2N, q)
-                dlam += np.einsum("kmq,kmq->q", Lt[a:b].conj(), dPr)
+                dPr = np.concatenate([du, dv], axis=1)  # (L, 2N, 2q)
+                # l^H dP r with l = lr + i li, dP r = xr + i xi
+                lr, li, xr, xi = Lt[a:b, :, :q], Lt[a:b, :, q:], dPr[..., :q], dPr[..., q:]
+                dlam += (np.einsum("kmq,kmq->q", lr, xr) + np.einsum("kmq,kmq->q", li, xi)
+                         + 1j * (np.einsum("kmq,kmq->q", lr, xi) - np.einsum("kmq,kmq->q", li, xr)))
         wv = np.einsum("mq,mq->q", w.conj(), v)
         out = mu0.copy()
         new = lam + dlam / wv
