@@ -168,3 +168,22 @@ def test_chord_steps_keep_the_solve_and_its_stability_error(monkeypatch):
     st, sf = chord.stability, full.stability
     assert st.verdict == sf.verdict == "stable"
     assert abs(st.spectral_radius - sf.spectral_radius) <= st.error, (st, sf)
+
+
+def test_a_chord_step_is_not_taken_far_from_its_frozen_tangent():
+    """The step after a full solve is a chord step near that solve's iterate, and a full solve
+    from an iterate far from it (an iteration started again elsewhere, as Anderson's after a
+    failed fixed-point iteration)."""
+    from kedfem.analysis.pipeline import _Run
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        run = _Run(scene(200))
+        ti, coarse = run.problem(48)
+        x0 = coarse.solve(None, eps=1e-4, max_iter=30).discrete.at(run.problem(96)[0])
+        ti, fine = run.problem(96)
+        _d, U1, V1 = fine.step(*x0)          # full: changes the interpolated start by ~1e-2
+        assert fine._chord is not None and fine.chord_steps == 0
+        fine.step(U1, V1)                    # near it: a chord step
+        assert fine.chord_steps == 1
+        d, _U, _V = fine.step(np.zeros_like(U1), np.zeros_like(V1))  # far from it: a full solve
+        assert fine.chord_steps == 1 and not d.chord

@@ -371,7 +371,7 @@ class PeriodicProblem:
             # M is checked on this problem's first solve only
         Un, Vn = d.instant_states()
         change = _relative_change(U, Un)
-        self._chord = ((d.resolver, change, dC, dK) if d.resolver is not None and change <= CHORD_CHANGE
+        self._chord = ((d.resolver, change, dC, dK, U) if d.resolver is not None and change <= CHORD_CHANGE
                        and d.spectral_radius <= CHORD_RHO else None)
         if d.resolver is not None:
             d = dataclasses.replace(d, resolver=None)
@@ -383,10 +383,15 @@ class PeriodicProblem:
         equations with the state terms about ``x``. Its fixed point is Newton's; it converges
         linearly at a rate of about the distance from the factorised tangent's iterate (a
         change of at most :data:`CHORD_CHANGE`), for a triangular solve per element instead
-        of a factorisation. None (a full step is due) when the last chord step did not shrink
-        the change by :data:`CHORD_CONTRACTION`, or its result is not finite.
+        of a factorisation. None (a full step is due) when the iterate is farther than twice
+        :data:`CHORD_CHANGE` from the one the tangent was frozen at (an iteration started again
+        elsewhere: Anderson's after a failed fixed-point iteration), when the last chord step
+        did not shrink the change by :data:`CHORD_CONTRACTION`, or when its result is not finite.
         """
-        resolver, last, dC0, dK0 = self._chord
+        resolver, last, dC0, dK0, U0 = self._chord
+        if _relative_change(U0, U) > 2.0 * CHORD_CHANGE:
+            self._chord = None
+            return None
         terms = self.terms
         Ct, Kt, Qt = schemes.with_state_terms(terms.C, terms.K, terms.Q, dC, dK, dQ)
         r = collocation.residual(terms.M, Ct, Kt, Qt, U, V, self.period, self.scheme.name, edges=self.edges)
@@ -405,7 +410,7 @@ class PeriodicProblem:
         change = _relative_change(U, Un)
         self.chord_steps += 1
         self._frozen[id(sol)] = (resolver, _minus(dC, dC0), _minus(dK, dK0))
-        self._chord = (resolver, change, dC0, dK0) if change <= CHORD_CONTRACTION * last else None
+        self._chord = (resolver, change, dC0, dK0, U0) if change <= CHORD_CONTRACTION * last else None
         return d, Un, Vn
 
     def _orbit_multipliers(self, solved: Solved) -> Solved:
