@@ -196,3 +196,40 @@ def test_strided_coarse_march_equals_the_full_march(name, monkeypatch):
     assert np.abs(wide.yc - full.yc).max() < 1e-11
     if name == "whitworth":
         assert calls == [3, 36]  # the marched instants, then the fallback through all of them
+
+
+def _crank_rocker(a, b, c, d, crank_deg):
+    """A rigid crank-rocker (crank a, coupler b, rocker c, ground d) drawn at a crank angle."""
+    th0 = math.radians(crank_deg)
+    A = np.array([a * math.cos(th0), a * math.sin(th0)])
+    O4 = np.array([d, 0.0])
+    r = np.linalg.norm(O4 - A)
+    x = (b * b - c * c + r * r) / (2 * r)
+    e = (O4 - A) / r
+    B = A + x * e + math.sqrt(b * b - x * x) * np.array([-e[1], e[0]])
+    m = kf.Mechanism("near toggle")
+    m.ground("O2", at=(0, 0))
+    m.ground("O4", at=(d, 0))
+    m.joint("A", at=tuple(A))
+    m.joint("B", at=tuple(B))
+    m.link("crank", "O2", "A", rigid=True)
+    m.link("coupler", "A", "B", rigid=True)
+    m.link("follower", "O4", "B", rigid=True)
+    m.drive("crank", speed=10.0)
+    return m
+
+
+@pytest.mark.parametrize("lengths", [(0.1, 0.3, 0.101, 0.3), (0.1, 0.25, 0.1503, 0.3)])
+def test_the_strided_march_keeps_the_branch_near_toggles(lengths, monkeypatch):
+    """Near-change-point crank-rockers (a review's cases): longer continuation steps jumped
+    branch at one near-toggle and back at the other (the cycle closed, the motion between was
+    the other branch's: the follower at half a cycle 6.509 rad instead of 0.226), or failed to
+    close. The strided grid must keep the Jacobian's sign and close, else the full march runs:
+    the motion is the full march's."""
+    from kedfem.motion import kinematics as kin
+    m = _crank_rocker(*lengths, 10.0)
+    t = np.linspace(0.0, m.period, 73)
+    strided = kin.Cycle(m).at(t)
+    monkeypatch.setattr(kin.Cycle, "STRIDE", 1)
+    full = kin.Cycle(m).at(t)
+    assert np.abs(strided.theta - full.theta).max() < 1e-10

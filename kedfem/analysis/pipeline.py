@@ -394,7 +394,8 @@ class _Run:
         # eigenproblems instead of 252 for levels 12/24/48; one solve on 48 elements, 35 for 144)
         field = self.damping_field(n, several)
         return ti, PeriodicProblem(self.scene, self.model, self.cycle, self.scheme, n, damping_field=field,
-                                   stiff=self.stiff, edges=edges, kinks=self.breaks() if edges is not None else None)
+                                   stiff=self.stiff, edges=edges, kinks=self.breaks() if edges is not None else None,
+                                   chord=True)
 
     def breaks(self) -> np.ndarray:
         """Instants [s] where the data has a kink or a step in time: a block crossing a node of

@@ -20,6 +20,7 @@ at the problem's instants, ``x = (U, V)``, each ``(n_i, N)``.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import logging
 import time
@@ -46,6 +47,9 @@ STREAM_BYTES = 400e6
 CHORD_CHANGE = 0.05
 #: a chord step must shrink the change by at least this factor; else the next step is a full one
 CHORD_CONTRACTION = 0.25
+#: a chord step only from stage states whose kinematic rows hold to this (relative; round-off of
+#: the solves' states and their combinations is 1e-15 .. 1e-13)
+KINEMATIC_DEFECT = 1e-10
 #: chord steps only on an orbit whose spectral radius is at most this: the multipliers of a chord
 #: step are those of the tangent it froze (an iterate up to CHORD_CHANGE away); near the
 #: stability limit, where their digits decide a verdict, every step is a full solve
@@ -256,6 +260,15 @@ class PeriodicProblem:
         before it (the left limit, :data:`LEFT_LIMIT` of the element earlier), not whichever
         side the round-off of the block's abscissa picks (a one-sided stage left the
         oscillating cylinder at first order on snapped elements).
+    chord : bool
+        Chord steps in :meth:`solve` and :meth:`polish` (:meth:`step`): the full solves keep
+        their factorisations (10-20 % more each) for the cheap steps after them. It pays where
+        an iteration takes several steps near its solution (the refinement's levels, which
+        :func:`kedfem.solve` builds with it); the continuation in speed, whose Newton solves
+        take two or three steps on 48 elements each, made 292 factorised solves and 85 chord
+        steps where it made 345 plain solves, 20.6 s against 14.2 s (the four-bar at 340 rpm;
+        its bordered corrector also differentiates :meth:`step` in speed, which a chord step
+        would spoil), so it is off by default.
 
     Attributes
     ----------
@@ -273,7 +286,7 @@ class PeriodicProblem:
     """
 
     def __init__(self, scene, model, cycle, scheme, n: int, *, damping_field=None, stiff=None,
-                 periods: int = 1, edges=None, kinks=None):
+                 periods: int = 1, edges=None, kinks=None, chord: bool = False):
         ta = time.perf_counter()
         self.scene, self.model, self.scheme, self.n = scene, model, scheme, int(n)
         self.periods = int(periods)
@@ -304,7 +317,13 @@ class PeriodicProblem:
             self.options["edges"] = self.edges
         self._terms = None
         self._D = None
-        self._chord = None  # (resolver, change, dC, dK) of the last full solve, for chord steps
+        self._chord = None  # (resolver, change, dC, dK, U) of the last full solve, for chord steps
+        # chord steps only inside solve() and polish(), whose iterates are this problem's own
+        # solutions and their combinations (the kinematic rows hold, the residual is the whole
+        # one); step() called directly (the continuation's bordered corrector differentiates it
+        # in speed) is always Newton's full step
+        self._iterating = False
+        self.chord = bool(chord)
         self._frozen: dict = {}  # id of a chord step's solution -> (resolver, dC - dC0, dK - dK0)
         self.chord_steps = 0
         self.kinematics = tb - ta
@@ -359,11 +378,12 @@ class PeriodicProblem:
         """
         terms = self.terms
         dC, dK, dQ = self.assembler.state_terms(U, V)
-        if self._chord is not None:
+        if self._chord is not None and self._iterating:
             out = self._chord_step(U, V, dC, dK, dQ)
             if out is not None:
                 return out
-        options = dict(self.options, factors=True) if self.has_residual else self.options
+        keep = self.chord and self.has_residual and self._iterating
+        options = dict(self.options, factors=True) if keep else self.options
         d = self.scheme.solve(terms.M, terms.C, terms.K, terms.Q, self.period, self.n, dC=dC, dK=dK, dQ=dQ,
                               **options)
         if isinstance(self.scheme, schemes.Collocation):
@@ -389,7 +409,11 @@ class PeriodicProblem:
         did not shrink the change by :data:`CHORD_CONTRACTION`, or when its result is not finite.
         """
         resolver, last, dC0, dK0, U0 = self._chord
-        if _relative_change(U0, U) > 2.0 * CHORD_CHANGE:
+        if _relative_change(U0, U) > 2.0 * CHORD_CHANGE or collocation.kinematic_defect(
+                U, V, self.period, self.scheme.name, edges=self.edges) > KINEMATIC_DEFECT:
+            # far from the frozen tangent, or an iterate the residual does not measure whole (a
+            # relaxed step from an interpolated start keeps half its kinematic defect, which a
+            # chord correction, itself free of one, never removes: it stopped 3e-3 off)
             self._chord = None
             return None
         terms = self.terms
@@ -409,9 +433,24 @@ class PeriodicProblem:
         Un, Vn = d.instant_states()
         change = _relative_change(U, Un)
         self.chord_steps += 1
-        self._frozen[id(sol)] = (resolver, _minus(dC, dC0), _minus(dK, dK0))
+        self._frozen = {id(sol): (resolver, _minus(dC, dC0), _minus(dK, dK0))}  # the latest only
         self._chord = (resolver, change, dC0, dK0, U0) if change <= CHORD_CONTRACTION * last else None
         return d, Un, Vn
+
+    @contextlib.contextmanager
+    def _chords(self, fresh: bool):
+        """Chord steps allowed while an iteration of :meth:`solve` or :meth:`polish` runs (from
+        a full step on: a start may be no solution of this problem, interpolated from a coarser
+        level or a continuation's predictor)."""
+        if fresh:
+            self._chord = None
+        self._iterating = True
+        try:
+            yield
+        finally:
+            # the factorisations go when the iteration ends (a problem outlives it in the
+            # refinement's bookkeeping and a continuation's cache): the next starts with a full step
+            self._iterating, self._chord = False, None
 
     def _orbit_multipliers(self, solved: Solved) -> Solved:
         """A solve that ended on a chord step, with :attr:`Solved.orbit`: the multipliers of the
@@ -478,7 +517,7 @@ class PeriodicProblem:
         -------
         Solved
         """
-        with warnings.catch_warnings(record=True) as caught:
+        with warnings.catch_warnings(record=True) as caught, self._chords(fresh=True):
             warnings.simplefilter("always")
             if not self.state:
                 return Solved(self.linear(), True, 1, (), "", list(caught))
@@ -514,7 +553,7 @@ class PeriodicProblem:
         Solved
             Its iterations and history include those of ``solved``.
         """
-        with warnings.catch_warnings(record=True) as caught:
+        with warnings.catch_warnings(record=True) as caught, self._chords(fresh=False):
             warnings.simplefilter("always")
             x0 = solved.discrete.instant_states()
             if solved.method == "newton":

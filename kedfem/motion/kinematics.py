@@ -697,10 +697,17 @@ def _coarse_march(model, tc, y0, tol, cols, stride):
     the continuation goes through every instant instead.
     """
     n_c = tc.size - 1
-    if stride <= 1 or not cols.size or n_c % stride:
+
+    def full():
         return np.vstack([y0[None], _march(model, tc[1:], y0, tol)])
+
+    if stride <= 1 or not cols.size or n_c % stride:
+        return full()
     tm = tc[::stride]
-    ym = np.vstack([y0[None], _march(model, tm[1:], y0, tol)])
+    try:  # longer steps near a toggle may jump branch (or fail) where the full march does not
+        ym = np.vstack([y0[None], _march(model, tm[1:], y0, tol)])
+    except KinematicsError:
+        return full()
     ydm = _unknown_rates(model, *_split(model, ym, model.drive_angles(tm)), cols)
     # the instants between: cubic Hermite guesses from the marched interval they are in
     j = np.arange(1, n_c)
@@ -725,19 +732,28 @@ def _coarse_march(model, tc, y0, tol, cols, stride):
             y = y + np.linalg.solve(J, -res[..., None])[..., 0]
         except np.linalg.LinAlgError:
             break
+    yc = np.empty((n_c + 1, y0.size))
+    yc[::stride] = ym
     if ok:
+        yc[j] = y
         nf = model.free_members.size
         step = np.max(np.abs(ym[k + 1, :nf] - ym[k, :nf]), axis=1, initial=0.0)
         jump = np.max(np.abs(y - guess), axis=1)
-        cond = np.linalg.cond(model.jacobian(*_split(model, y, thd))[:, :, cols])
-        ok = bool(np.all(jump <= 0.05 + 0.5 * step) and np.all(np.isfinite(cond)) and np.all(cond <= 1e10))
+        J = model.jacobian(*_split(model, yc, model.drive_angles(tc)))[:, :, cols]
+        cond = np.linalg.cond(J)
+        # one assembly branch all through the cycle: the Jacobian's determinant keeps its sign
+        # (the branches meet where it vanishes, at a toggle); a march that jumped branch near a
+        # toggle and back at another closes the cycle with a wrong motion between
+        sign = np.sign(np.linalg.det(J))
+        nfree = model.free_members.size
+        wrap = np.round((yc[-1, :nfree] - y0[:nfree]) / (2 * math.pi)) * 2 * math.pi
+        closes = np.max(np.abs(yc[-1] - np.concatenate([y0[:nfree] + wrap, y0[nfree:]])), initial=0.0) <= 1e-8
+        ok = bool(np.all(jump <= 0.05 + 0.5 * step) and np.all(np.isfinite(cond)) and np.all(cond <= 1e10)
+                  and np.all(sign == sign[0]) and sign[0] != 0 and closes)
     if not ok:
-        log.debug("kinematics: the coarse grid between the marched instants did not settle; "
+        log.debug("kinematics: the coarse grid from the marched instants is not one settled branch; "
                   "marching through all of it")
-        return np.vstack([y0[None], _march(model, tc[1:], y0, tol)])
-    yc = np.empty((n_c + 1, y0.size))
-    yc[::stride] = ym
-    yc[j] = y
+        return full()
     return yc
 
 

@@ -58,7 +58,7 @@ from .periodic import (MAX_CONDITION, MIN_NODES, _check_mass, _run_parallel, _So
 from .threads import one_blas_thread
 
 __all__ = ["Tableau", "tableau", "SCHEMES", "solve", "CollocationSolution", "dense", "instants", "residual",
-           "stiffly_accurate"]
+           "stiffly_accurate", "kinematic_defect", "Resolver"]
 
 log = logging.getLogger(__name__)
 
@@ -662,6 +662,36 @@ def residual(M, C, K, Q, U, V, period: float, scheme: str = "radau3", edges=None
         return Y @ X.T if X.ndim == 2 else np.einsum("tij,tj->ti", X, Y)
 
     return apply(M, acc) + apply(C, V) + apply(K, U) - np.asarray(Q, dtype=float)
+
+
+def kinematic_defect(U, V, period: float, scheme: str = "radau3", edges=None) -> float:
+    """How far stage states are from satisfying the kinematic rows of a stiffly accurate scheme.
+
+    With the element start the last stage of the element before and the stage accelerations
+    ``a = A^-1 (V - v_k) / h``, the rows ``U_j = u_k + h c_j v_k + h^2 sum_l (A^2)_jl a_l``
+    hold to round-off for the states of a :func:`solve` and their linear combinations, which
+    :func:`residual` then measures whole; a state interpolated from other elements, or a
+    relaxed step from one, does not satisfy them.
+
+    Returns
+    -------
+    float
+        ``max |U_j - (u_k + h c_j v_k + h^2 (A^2 a)_j)| / max |U|`` (0 for a zero state).
+    """
+    tab = tableau(scheme)
+    s = tab.s
+    U = np.asarray(U, dtype=float)
+    V = np.asarray(V, dtype=float)
+    ns, N = U.shape
+    n = ns // s
+    h = np.full(n, period / n) if edges is None else np.diff(np.asarray(edges, dtype=float))
+    Ue, Ve = U.reshape(n, s, N), V.reshape(n, s, N)
+    u0, v0 = np.roll(Ue[:, -1], 1, axis=0), np.roll(Ve[:, -1], 1, axis=0)
+    acc = np.einsum("jl,kln->kjn", _inverse_A(scheme), Ve - v0[:, None]) / h[:, None, None]
+    pred = (u0[:, None] + (h[:, None, None] * tab.c[None, :, None]) * v0[:, None]
+            + (h * h)[:, None, None] * np.einsum("jl,kln->kjn", tab.A2, acc))
+    scale = float(np.abs(U).max()) if U.size else 0.0
+    return float(np.abs(Ue - pred).max()) / scale if scale > 0 else 0.0
 
 
 @lru_cache(maxsize=None)
