@@ -26,6 +26,7 @@ import logging
 import time
 import warnings
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -219,6 +220,16 @@ def snapped_edges(n: int, period: float, breaks) -> np.ndarray | None:
     return edges
 
 
+class _Frozen(NamedTuple):
+    """A full solve's factorisations kept for chord steps (:meth:`PeriodicProblem.step`)."""
+
+    resolver: object  # kedfem.solvers.collocation.Resolver
+    change: float     # the change of the last step on it (the full solve's, then each chord step's)
+    dC: object        # the state terms the tangent was frozen with, (n_i, N, N) or None
+    dK: object
+    U: np.ndarray     # the iterate it was frozen at (n_i, N)
+
+
 def _minus(a, b):
     """``a - b`` of two optional state terms (None: zero)."""
     if a is None and b is None:
@@ -317,14 +328,15 @@ class PeriodicProblem:
             self.options["edges"] = self.edges
         self._terms = None
         self._D = None
-        self._chord = None  # (resolver, change, dC, dK, U) of the last full solve, for chord steps
+        self._chord: _Frozen | None = None  # the last full solve's, for chord steps
         # chord steps only inside solve() and polish(), whose iterates are this problem's own
         # solutions and their combinations (the kinematic rows hold, the residual is the whole
         # one); step() called directly (the continuation's bordered corrector differentiates it
         # in speed) is always Newton's full step
         self._iterating = False
         self.chord = bool(chord)
-        self._frozen: dict = {}  # id of a chord step's solution -> (resolver, dC - dC0, dK - dK0)
+        # the last chord step's solution and its tangent's change since the frozen one
+        self._last_chord: tuple | None = None
         self.chord_steps = 0
         self.kinematics = tb - ta
         self.assembly = time.perf_counter() - tb
@@ -391,7 +403,7 @@ class PeriodicProblem:
             # M is checked on this problem's first solve only
         Un, Vn = d.instant_states()
         change = _relative_change(U, Un)
-        self._chord = ((d.resolver, change, dC, dK, U) if d.resolver is not None and change <= CHORD_CHANGE
+        self._chord = (_Frozen(d.resolver, change, dC, dK, U) if d.resolver is not None and change <= CHORD_CHANGE
                        and d.spectral_radius <= CHORD_RHO else None)
         if d.resolver is not None:
             d = dataclasses.replace(d, resolver=None)
@@ -408,7 +420,8 @@ class PeriodicProblem:
         elsewhere: Anderson's after a failed fixed-point iteration), when the last chord step
         did not shrink the change by :data:`CHORD_CONTRACTION`, or when its result is not finite.
         """
-        resolver, last, dC0, dK0, U0 = self._chord
+        frozen = self._chord
+        resolver, U0 = frozen.resolver, frozen.U
         if _relative_change(U0, U) > 2.0 * CHORD_CHANGE or collocation.kinematic_defect(
                 U, V, self.period, self.scheme.name, edges=self.edges) > KINEMATIC_DEFECT:
             # far from the frozen tangent, or an iterate the residual does not measure whole (a
@@ -433,8 +446,9 @@ class PeriodicProblem:
         Un, Vn = d.instant_states()
         change = _relative_change(U, Un)
         self.chord_steps += 1
-        self._frozen = {id(sol): (resolver, _minus(dC, dC0), _minus(dK, dK0))}  # the latest only
-        self._chord = (resolver, change, dC0, dK0, U0) if change <= CHORD_CONTRACTION * last else None
+        self._last_chord = (sol, resolver, _minus(dC, frozen.dC), _minus(dK, frozen.dK))
+        self._chord = (frozen._replace(change=change) if change <= CHORD_CONTRACTION * frozen.change
+                       else None)
         return d, Un, Vn
 
     @contextlib.contextmanager
@@ -459,14 +473,13 @@ class PeriodicProblem:
         tangent's change: the square of a change of at most :data:`CHORD_CHANGE`; 10-25 ms on
         192 elements, so only the result's level asks)."""
         d = solved.discrete
-        frozen = self._frozen.get(id(d.raw)) if getattr(d, "chord", False) else None
-        self._frozen.clear()
-        if frozen is None:
+        last, self._last_chord = self._last_chord, None
+        if not getattr(d, "chord", False) or last is None or last[0] is not d.raw:
             return solved
         scheme = self.scheme
 
         def orbit():
-            resolver, dC, dK = frozen
+            _sol, resolver, dC, dK = last
             mu = resolver.multipliers(dC, dK)
             rho = float(np.abs(mu).max()) if mu.size else 0.0
             raw = dataclasses.replace(d.raw, floquet_multipliers=mu, stable=bool(rho < 1.0))

@@ -602,11 +602,7 @@ class Cycle:
         else:
             self.ydc = np.zeros_like(yc)
         # close the cycle: continuing to t = T must return to the reference configuration
-        yT = yc[-1]
-        nfree = model.free_members.size
-        wrap = yT.copy()
-        wrap[:nfree] = y0[:nfree] + np.round((yT[:nfree] - y0[:nfree]) / (2 * math.pi)) * 2 * math.pi
-        if np.max(np.abs(yT - wrap), initial=0.0) > 1e-8:
+        if not _closes(model, y0, yc[-1]):
             raise KinematicsError(f"{mechanism.name}: the motion does not return to the reference "
                                   "configuration after one cycle (the linkage switched assembly branch)")
 
@@ -617,26 +613,10 @@ class Cycle:
         n = t.size
         if cols.size == 0:
             return np.broadcast_to(y0, (n, y0.size)).copy()
-        h, tc, yc, ydc = self.h, self.tc, self.yc, self.ydc
-        k = np.clip((t / h).astype(int), 0, self.COARSE - 1)
-        u = ((t - tc[k]) / h)[:, None]
-        guess = ((2 * u**3 - 3 * u**2 + 1) * yc[k] + (u**3 - 2 * u**2 + u) * h * ydc[k]
-                 + (-2 * u**3 + 3 * u**2) * yc[k + 1] + (u**3 - u**2) * h * ydc[k + 1])
+        k = np.clip((t / self.h).astype(int), 0, self.COARSE - 1)
+        guess = _hermite(self.tc, self.yc, self.ydc, k, t)
         thd = model.drive_angles(t)
-        y = guess.copy()
-        ok = False
-        for _ in range(8):
-            theta, s = _split(model, y, thd)
-            w = model.edge_vectors(theta, s)
-            res = model.residual(theta, s, w)
-            if np.max(np.abs(res)) <= tol:
-                ok = True
-                break
-            J = model.jacobian(theta, s, w)[:, :, cols]
-            try:
-                y = y + np.linalg.solve(J, -res[..., None])[..., 0]
-            except np.linalg.LinAlgError:
-                break
+        y, ok = _newton_all(model, guess, thd, cols, tol)
         if ok and np.max(np.abs(y - guess)) < 1e-3:
             J = model.jacobian(*_split(model, y, thd))[:, :, cols]
             cond = np.linalg.cond(J)
@@ -686,6 +666,43 @@ def _unknown_rates(model, theta, s, cols):
     return np.concatenate([omega[:, model.free_members], sd], axis=1)
 
 
+def _hermite(tk, yk, ydk, k, t):
+    """Cubic Hermite interpolant (n, n_unknowns) at instants ``t`` (n,) of positions ``yk`` and
+    rates ``ydk`` on the equally spaced instants ``tk``, ``t`` in the interval ``k`` (n,)."""
+    h = tk[1] - tk[0]
+    u = ((t - tk[k]) / h)[:, None]
+    return ((2 * u**3 - 3 * u**2 + 1) * yk[k] + (u**3 - 2 * u**2 + u) * h * ydk[k]
+            + (-2 * u**3 + 3 * u**2) * yk[k + 1] + (u**3 - u**2) * h * ydk[k + 1])
+
+
+def _newton_all(model, y, thd, cols, tol, max_iter: int = 8):
+    """Newton's method on the loop equations at all instants at once from ``y`` (n, n_unknowns).
+
+    Returns the positions and whether every residual met ``tol`` (False also when a Jacobian
+    is singular).
+    """
+    for _ in range(max_iter):
+        theta, s = _split(model, y, thd)
+        w = model.edge_vectors(theta, s)
+        res = model.residual(theta, s, w)
+        if np.max(np.abs(res)) <= tol:
+            return y, True
+        J = model.jacobian(theta, s, w)[:, :, cols]
+        try:
+            y = y + np.linalg.solve(J, -res[..., None])[..., 0]
+        except np.linalg.LinAlgError:
+            return y, False
+    return y, False
+
+
+def _closes(model, y0, yT) -> bool:
+    """The positions ``yT`` after a cycle are the reference ``y0`` (free angles up to whole turns)."""
+    nfree = model.free_members.size
+    wrap = yT.copy()
+    wrap[:nfree] = y0[:nfree] + np.round((yT[:nfree] - y0[:nfree]) / (2 * math.pi)) * 2 * math.pi
+    return bool(np.max(np.abs(yT - wrap), initial=0.0) <= 1e-8)
+
+
 def _coarse_march(model, tc, y0, tol, cols, stride):
     """Positions (n_c + 1, n_unknowns) on the coarse grid ``tc`` (``tc[0] = 0`` at ``y0``).
 
@@ -713,25 +730,9 @@ def _coarse_march(model, tc, y0, tol, cols, stride):
     j = np.arange(1, n_c)
     j = j[j % stride != 0]
     k = j // stride
-    hm = tm[1] - tm[0]
-    u = ((tc[j] - tm[k]) / hm)[:, None]
-    guess = ((2 * u**3 - 3 * u**2 + 1) * ym[k] + (u**3 - 2 * u**2 + u) * hm * ydm[k]
-             + (-2 * u**3 + 3 * u**2) * ym[k + 1] + (u**3 - u**2) * hm * ydm[k + 1])
+    guess = _hermite(tm, ym, ydm, k, tc[j])
     thd = model.drive_angles(tc[j])
-    y = guess.copy()
-    ok = False
-    for _ in range(8):
-        theta, s = _split(model, y, thd)
-        w = model.edge_vectors(theta, s)
-        res = model.residual(theta, s, w)
-        if np.max(np.abs(res)) <= tol:
-            ok = True
-            break
-        J = model.jacobian(theta, s, w)[:, :, cols]
-        try:
-            y = y + np.linalg.solve(J, -res[..., None])[..., 0]
-        except np.linalg.LinAlgError:
-            break
+    y, ok = _newton_all(model, guess, thd, cols, tol)
     yc = np.empty((n_c + 1, y0.size))
     yc[::stride] = ym
     if ok:
@@ -745,11 +746,8 @@ def _coarse_march(model, tc, y0, tol, cols, stride):
         # (the branches meet where it vanishes, at a toggle); a march that jumped branch near a
         # toggle and back at another closes the cycle with a wrong motion between
         sign = np.sign(np.linalg.det(J))
-        nfree = model.free_members.size
-        wrap = np.round((yc[-1, :nfree] - y0[:nfree]) / (2 * math.pi)) * 2 * math.pi
-        closes = np.max(np.abs(yc[-1] - np.concatenate([y0[:nfree] + wrap, y0[nfree:]])), initial=0.0) <= 1e-8
         ok = bool(np.all(jump <= 0.05 + 0.5 * step) and np.all(np.isfinite(cond)) and np.all(cond <= 1e10)
-                  and np.all(sign == sign[0]) and sign[0] != 0 and closes)
+                  and np.all(sign == sign[0]) and sign[0] != 0 and _closes(model, y0, yc[-1]))
     if not ok:
         log.debug("kinematics: the coarse grid from the marched instants is not one settled branch; "
                   "marching through all of it")

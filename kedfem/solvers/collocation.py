@@ -646,16 +646,10 @@ def residual(M, C, K, Q, U, V, period: float, scheme: str = "radau3", edges=None
     if tab.c[-1] != 1.0:
         raise InputError(f"residual: scheme {scheme!r} is not stiffly accurate (its last stage is not the "
                          "element end)")
-    s = tab.s
     U = np.asarray(U, dtype=float)
     V = np.asarray(V, dtype=float)
-    ns, N = U.shape
-    n = ns // s
-    h = np.full(n, period / n) if edges is None else np.diff(np.asarray(edges, dtype=float))
-    Ve = V.reshape(n, s, N)
-    v0 = np.roll(Ve[:, -1], 1, axis=0)
-    acc = np.einsum("jl,kln->kjn", _inverse_A(scheme), Ve - v0[:, None]) / h[:, None, None]
-    acc = acc.reshape(ns, N)
+    _h, acc = _stage_accelerations(V, period, scheme, edges)
+    acc = acc.reshape(U.shape)
 
     def apply(X, Y):
         X = np.asarray(X, dtype=float)
@@ -679,19 +673,28 @@ def kinematic_defect(U, V, period: float, scheme: str = "radau3", edges=None) ->
         ``max |U_j - (u_k + h c_j v_k + h^2 (A^2 a)_j)| / max |U|`` (0 for a zero state).
     """
     tab = tableau(scheme)
-    s = tab.s
     U = np.asarray(U, dtype=float)
     V = np.asarray(V, dtype=float)
-    ns, N = U.shape
-    n = ns // s
-    h = np.full(n, period / n) if edges is None else np.diff(np.asarray(edges, dtype=float))
-    Ue, Ve = U.reshape(n, s, N), V.reshape(n, s, N)
-    u0, v0 = np.roll(Ue[:, -1], 1, axis=0), np.roll(Ve[:, -1], 1, axis=0)
-    acc = np.einsum("jl,kln->kjn", _inverse_A(scheme), Ve - v0[:, None]) / h[:, None, None]
+    h, acc = _stage_accelerations(V, period, scheme, edges)
+    Ue = U.reshape(acc.shape)
+    u0 = np.roll(Ue[:, -1], 1, axis=0)
+    v0 = np.roll(V.reshape(acc.shape)[:, -1], 1, axis=0)
     pred = (u0[:, None] + (h[:, None, None] * tab.c[None, :, None]) * v0[:, None]
             + (h * h)[:, None, None] * np.einsum("jl,kln->kjn", tab.A2, acc))
     scale = float(np.abs(U).max()) if U.size else 0.0
     return float(np.abs(Ue - pred).max()) / scale if scale > 0 else 0.0
+
+
+def _stage_accelerations(V, period: float, scheme: str, edges=None):
+    """Element lengths ``h`` (n,) [s] and stage accelerations ``a = A^-1 (V_j - v_k) / h``
+    (n, s, N) of stage velocities ``V`` (n s, N), the element start the last stage of the
+    element before (a stiffly accurate scheme, periodic)."""
+    s = tableau(scheme).s
+    n = V.shape[0] // s
+    h = np.full(n, period / n) if edges is None else np.diff(np.asarray(edges, dtype=float))
+    Ve = V.reshape(n, s, -1)
+    v0 = np.roll(Ve[:, -1], 1, axis=0)
+    return h, np.einsum("jl,kln->kjn", _inverse_A(scheme), Ve - v0[:, None]) / h[:, None, None]
 
 
 @lru_cache(maxsize=None)
