@@ -40,7 +40,7 @@ from ..fe.effects import unsimulated
 from ..solvers.nonlinear import PREDICT_FRACTION, PREDICT_MAX_CHANGE
 from ..solvers.threads import one_blas_thread
 from .plausibility import check_passive_links, check_result
-from .problem import PeriodicProblem, constant_or_sampled, damping_field, snapped_edges
+from .problem import STREAM_BYTES, PeriodicProblem, constant_or_sampled, damping_field, snapped_edges
 from .results import PeriodicResult, Sampler, Stability, Timings, stability_verdict
 from .scene import MAX_STEPS, Scene
 
@@ -124,6 +124,7 @@ class _Level:
     caught: list
     predicted: float | None = None  # Newton stopped on this predicted next change (see Solved)
     orbit: object = None  # the multipliers about the last iterate on demand (see Solved.orbit)
+    problem: object = None  # its PeriodicProblem, kept on the last two levels for the defect estimate
 
 
 def solve(scene: Scene, progress: bool | None = None, *, start=None) -> PeriodicResult:
@@ -276,6 +277,8 @@ class _Run:
         self._grids: dict[int, tuple] = {}
         self._breaks = None  # instants of kinks in the data (see breaks())
         self._obs: dict[tuple[int, int], accuracy.Observables] = {}
+        self._corrected: dict = {}  # level index -> its defect-corrected Discrete (None: not available)
+        self._obs_corrected: dict[tuple[int, int], accuracy.Observables] = {}
         self._t_read = 0.0   # seconds spent reading levels for the estimate
         self.forecast_s = None  # the whole solve's wall time as forecast after its second level [s]
         self._more_levels = 0   # levels the forecast expects after the last one solved
@@ -339,9 +342,15 @@ class _Run:
         d = out.discrete
         t_solve = td - tc - (prob.assembly - a0)
         lv = _Level(n, d, out.converged, out.iterations, out.history, prob.kinematics, prob.assembly, t_solve,
-                    out.caught, out.predicted, out.orbit)
-        # only the finest level's multipliers are made exact (its kept factorisations go with it)
+                    out.caught, out.predicted, out.orbit, prob if self._keeps(prob) else None)
+        # only the finest level's multipliers are made exact (its kept factorisations go with it);
+        # the problems (their assembled systems) of the last two levels only
         self.levels = [dataclasses.replace(x, orbit=None) if x.orbit is not None else x for x in self.levels]
+        for x in self.levels[:-1]:
+            if x.problem is not None:
+                x.problem.release()
+        self.levels[:-1] = [dataclasses.replace(x, problem=None) if x.problem is not None else x
+                            for x in self.levels[:-1]]
         log.info("%s: level n=%d (%s) %d iteration(s) rho=%.4g %.3f s", sc.mech.name, n, scheme.name,
                  out.iterations, d.spectral_radius, prob.kinematics + prob.assembly + t_solve)
         self.levels.append(lv)
@@ -377,8 +386,9 @@ class _Run:
                 log.info("%s: level n=%d solved again from level n=%d", sc.mech.name, lv.n, fine.n)
                 self.levels[i] = dataclasses.replace(
                     timed, discrete=out.discrete, converged=True, iterations=lv.iterations + out.iterations,
-                    history=out.history, caught=out.caught, predicted=None)
-                self._obs = {k: v for k, v in self._obs.items() if k[0] != i}
+                    history=out.history, caught=out.caught, predicted=None,
+                    problem=prob if lv.problem is not None else None)
+                self._forget(i)
             else:
                 self._failed_problems[lv.n] = (ti, prob)
                 self.levels[i] = timed
@@ -654,8 +664,7 @@ class _Run:
             lv, discrete=out.discrete, converged=out.converged, iterations=out.iterations,
             history=out.history, solve=lv.solve + time.perf_counter() - t0, caught=out.caught,
             predicted=out.predicted, orbit=out.orbit)
-        i = len(self.levels) - 1
-        self._obs = {k: v for k, v in self._obs.items() if k[0] != i}
+        self._forget(len(self.levels) - 1)
         self._continue = None
 
     def resolution(self) -> tuple[int, float]:
@@ -959,6 +968,69 @@ class _Run:
             self._read[key] = (self.levels[i], res._cache)  # its peaks, forces... for the result
         return self._obs[key]
 
+    def _keeps(self, prob) -> bool:
+        """Keep a level's problem for the defect estimate: a stiffly accurate collocation whose
+        assembled system is held whole (not streamed)."""
+        return bool(self.scene.rtol is not None and prob.has_residual
+                    and 3 * prob.instants.size * prob.N ** 2 * 8 <= STREAM_BYTES)
+
+    def _forget(self, i: int) -> None:
+        """Level ``i`` was solved again: what was read from it goes."""
+        self._obs = {k: v for k, v in self._obs.items() if k[0] != i}
+        self._obs_corrected = {k: v for k, v in self._obs_corrected.items() if k[0] != i}
+        self._corrected.pop(i, None)
+
+    def corrected(self, i: int):
+        """Level ``i``'s defect-corrected solution (:meth:`PeriodicProblem.corrected`), or None."""
+        if i not in self._corrected:
+            lv = self.levels[i]
+            t0 = time.perf_counter()
+            self._corrected[i] = (lv.problem.corrected(lv.discrete)
+                                  if lv.problem is not None and lv.converged else None)
+            self._t_read += time.perf_counter() - t0
+        return self._corrected[i]
+
+    def observe_corrected(self, i: int, n_out: int) -> accuracy.Observables | None:
+        """:meth:`observe` of level ``i``'s defect-corrected solution (None where there is none)."""
+        key = (i, n_out)
+        if key not in self._obs_corrected:
+            y = self.corrected(i)
+            if y is None:
+                self._obs_corrected[key] = None
+            else:
+                t0 = time.perf_counter()
+                lv = dataclasses.replace(self.levels[i], discrete=y)
+                self._obs_corrected[key] = self.result(lv, n_out).observables(refined=False)
+                self._t_read += time.perf_counter() - t0
+        return self._obs_corrected[key]
+
+    def defect_estimate(self, n_out: int, need: int = 0) -> accuracy.ErrorEstimate | None:
+        """Estimate of the finest level from its defect correction, believed where the level
+        before it, corrected by its own, explains their difference
+        (:func:`kedfem.analysis.accuracy.defect_estimate`); None where it does not apply (no
+        tolerance, a scheme without it, fewer than two converged levels, a coarser level that
+        does not resolve the excited modes (``need``), levels not one refinement apart, or peaks
+        that changed too much for the finer level to meet the tolerance:
+        :func:`kedfem.analysis.accuracy.promising`)."""
+        sc = self.scene
+        if sc.rtol is None or len(self.levels) < 2:
+            return None
+        ia, ib = len(self.levels) - 2, len(self.levels) - 1
+        a, b = self.levels[ia], self.levels[ib]
+        if not (a.converged and b.converged) or a.n < need or self.scheme.refine(a.n) != b.n \
+                or a.problem is None or b.problem is None:
+            return None  # (a coarser level that does not resolve the excited modes does not explain the change)
+        oa, ob = self.observe(ia, n_out), self.observe(ib, n_out)
+        if not accuracy.promising(oa, ob, ratio=b.n / a.n, order=self.scheme.dense_order, rtol=sc.rtol):
+            return None
+        oya = self.observe_corrected(ia, n_out)
+        oyb = self.observe_corrected(ib, n_out) if oya is not None else None
+        if oyb is None:
+            return None
+        return accuracy.defect_estimate((a.n, b.n), oa, ob, oya, oyb,
+                                        assumed=accuracy.ASSUMED_RATE.get(self.scheme.name, 1.0),
+                                        order=self.scheme.dense_order, rtol=sc.rtol)
+
     def estimate(self, n_out: int, need: int = 0) -> accuracy.ErrorEstimate | None:
         """Estimate of the finest level from the last two or three converged ones (``need``:
         resolution floor)."""
@@ -1070,8 +1142,14 @@ class _Run:
                                 "not refining further", sc.mech.name,
                                 "/".join(str(x.n) for x in self.levels[-failed:]))
                     break
-                if len(self.levels) >= 3:
-                    est = self.estimate(self.output_steps(n), need)
+                est = self.estimate(self.output_steps(n), need) if len(self.levels) >= 3 else None
+                if est is None or not (est.met and (est.asymptotic or believed or est.settled or est.clear)):
+                    # the finest level's defect correction, where it explains the change from the level
+                    # before: one or two levels fewer than three levels in the asymptotic range
+                    dest = self.defect_estimate(self.output_steps(n), need)
+                    if dest is not None and dest.met:
+                        est = dest
+                if est is not None:
                     if self._bar is not None and est.peak is not None:
                         self._bar.set_postfix_str(f"{n} time elements, error {est.peak:.1e}", refresh=True)
                     # before the asymptotic range the estimate is loose (over): refine on; and
@@ -1095,7 +1173,9 @@ class _Run:
                 n = scheme.refine(n)
             if self._continue is not None:
                 self.finish()
-                if len(self.levels) >= 3:
+                # the defect estimate stands: the iteration's last change (within a tenth of rtol)
+                # moves it by the estimate's relative error times that change
+                if len(self.levels) >= 3 and (est is None or est.method != "defect"):
                     est = self.estimate(self.output_steps(self.levels[-1].n), need)
             n_out = self.output_steps(self.levels[-1].n)
             if est is None and len(self.levels) >= 2:

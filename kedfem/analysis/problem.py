@@ -34,7 +34,7 @@ from ..fe.assembler import Assembler
 from ..fe.damping import ModalDamping
 from ..fe.modal_damping import DampingField, PiecewiseDampingField, field_over_cycle
 from ..fe.slots import node_crossings
-from ..solvers import collocation, schemes
+from ..solvers import collocation, defect, schemes
 from ..solvers.nonlinear import fixed_point, fixed_point_or_anderson, newton
 
 __all__ = ["PeriodicProblem", "Solved", "STREAM_BYTES"]
@@ -337,6 +337,7 @@ class PeriodicProblem:
         self.chord = bool(chord)
         # the last chord step's solution and its tangent's change since the frozen one
         self._last_chord: tuple | None = None
+        self._kept: _Frozen | None = None  # the factorised tangent at the last iteration's end
         self.chord_steps = 0
         self.kinematics = tb - ta
         self.assembly = time.perf_counter() - tb
@@ -463,8 +464,15 @@ class PeriodicProblem:
             yield
         finally:
             # the factorisations go when the iteration ends (a problem outlives it in the
-            # refinement's bookkeeping and a continuation's cache): the next starts with a full step
+            # refinement's bookkeeping and a continuation's cache): the next starts with a full step;
+            # the last tangent near the solution stays for the defect estimate (:meth:`corrected`)
+            # until :meth:`release`
+            self._kept = self._chord
             self._iterating, self._chord = False, None
+
+    def release(self) -> None:
+        """Drop the factorisations kept for :meth:`corrected`."""
+        self._kept = None
 
     def _orbit_multipliers(self, solved: Solved) -> Solved:
         """A solve that ended on a chord step, with :attr:`Solved.orbit`: the multipliers of the
@@ -507,6 +515,45 @@ class PeriodicProblem:
         Ct, Kt, Qt = schemes.with_state_terms(terms.C, terms.K, terms.Q, *self.assembler.state_terms(U, V))
         r = collocation.residual(terms.M, Ct, Kt, Qt, U, V, self.period, self.scheme.name, edges=self.edges)
         return float(np.linalg.norm(np.einsum("tij,tj->ti", self._D, r) if self._D.ndim == 3 else r @ self._D.T))
+
+    def corrected(self, discrete):
+        """The defect-corrected solution of one of this problem's solves (the one-level error
+        estimate of :mod:`kedfem.solvers.defect`): the same system, with the state terms in
+        tangent form about ``discrete`` for a non-linear scene, and the same elements.
+
+        Parameters
+        ----------
+        discrete : kedfem.solvers.schemes.Discrete
+            A solve of this problem (a Radau IIA collocation).
+
+        Returns
+        -------
+        kedfem.solvers.schemes.Discrete or None
+            Its difference from ``discrete`` is the estimated error; None for schemes the estimate
+            does not read (:func:`kedfem.solvers.defect.available`) or a result that is not finite.
+        """
+        if not defect.available(discrete):
+            return None
+        terms = self.terms
+        M, C, K, Q = terms.M, terms.C, terms.K, terms.Q
+        if self.state:
+            C, K, Q = schemes.with_state_terms(C, K, Q, *self.assembler.state_terms(*discrete.instant_states()))
+        M, C, K = (constant_or_sampled(X) for X in (M, C, K))
+        options = {k: v for k, v in self.options.items() if k != "factors"}
+        kept = self._kept
+        if kept is not None and _relative_change(kept.U, discrete.instant_states()[0]) > 2.0 * CHORD_CHANGE:
+            kept = None  # frozen elsewhere (an iteration that failed before a continuation solved it)
+
+        def resolve(load):
+            if kept is not None:
+                # the tangent factorised within CHORD_CHANGE of the solution: its response to the
+                # defect is off by about that fraction of the estimate, for a triangular solve per
+                # element instead of a solve
+                return self.scheme.discrete(kept.resolver.solve(load))
+            return self.scheme.solve(M, C, K, load, self.period, self.n, **options)
+
+        out = defect.corrected(discrete, M, C, K, Q, resolve)
+        return out if (np.all(np.isfinite(out.U)) and np.all(np.isfinite(out.V))) else None
 
     def solve(self, x0=None, *, eps: float, max_iter: int, method: str = "newton", rate=None) -> Solved:
         """The periodic response: linear, or iterated from ``x0`` (default the linear response).
