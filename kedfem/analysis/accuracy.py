@@ -426,6 +426,17 @@ def promising(coarse: Observables, fine: Observables, *, ratio: float, order: fl
     return change / (ratio ** order - 1.0) <= rtol
 
 
+def explained(coarse: Observables, fine: Observables, coarse_corrected: Observables, *,
+              rtol: float) -> tuple[bool, float]:
+    """Does the coarser level's defect correction explain the change of the peaks to the finer
+    level? The coarser level corrected by it is within :data:`EXPLAINED` of the change from the
+    finer one, in every link's peak deflection and stress, with :data:`SETTLED_FRACTION` of
+    ``rtol`` for read-out noise. Returns the verdict and the largest fraction of a change left."""
+    change, left = _peak_differences(fine, coarse), _peak_differences(fine, coarse_corrected)
+    ok = bool(np.all(left <= EXPLAINED * change + SETTLED_FRACTION * rtol))
+    return ok, float(np.max(left / np.maximum(change, 1e-300), initial=0.0))
+
+
 def defect_estimate(levels: tuple[int, int], coarse: Observables, fine: Observables,
                     coarse_corrected: Observables, fine_corrected: Observables, *,
                     assumed: float, order: float, rtol: float) -> ErrorEstimate:
@@ -464,8 +475,8 @@ def defect_estimate(levels: tuple[int, int], coarse: Observables, fine: Observab
     ErrorEstimate
         With ``method="defect"``; ``rate`` is the one the peaks' change and estimate imply.
     """
-    change, left = _peak_differences(fine, coarse), _peak_differences(fine, coarse_corrected)
-    explained = bool(np.all(left <= EXPLAINED * change + SETTLED_FRACTION * rtol))
+    ok, left = explained(coarse, fine, coarse_corrected, rtol=rtol)
+    change = _peak_differences(fine, coarse)
     pk = _peak_differences(fine, fine_corrected)
     ratio = levels[1] / levels[0]
     hi = np.maximum(_history_differences(fine, fine_corrected),
@@ -476,8 +487,6 @@ def defect_estimate(levels: tuple[int, int], coarse: Observables, fine: Observab
     rate = math.log(1.0 + big / small) / math.log(ratio) if small > 0 and big > 0 else float(order)
     rate = min(max(rate, 1.0), float(order))
     log.debug("defect estimate %d/%d: peaks changed %.2e, %.2e of it left after the coarser level's correction, "
-              "estimate %.2e%s", levels[0], levels[1], big,
-              float(np.max(left / np.maximum(change, 1e-300), initial=0.0)), SAFETY * small,
-              "" if explained else " (not explained)")
-    return ErrorEstimate(out, (int(levels[0]), int(levels[1])), float(rate), explained, rtol, float(assumed),
-                         asymptotic=explained, method="defect")
+              "estimate %.2e%s", levels[0], levels[1], big, left, SAFETY * small, "" if ok else " (not explained)")
+    return ErrorEstimate(out, (int(levels[0]), int(levels[1])), float(rate), ok, rtol, float(assumed),
+                         asymptotic=ok, method="defect")

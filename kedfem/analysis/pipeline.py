@@ -1024,7 +1024,14 @@ class _Run:
         if not accuracy.promising(oa, ob, ratio=b.n / a.n, order=self.scheme.dense_order, rtol=sc.rtol):
             return None
         oya = self.observe_corrected(ia, n_out)
-        oyb = self.observe_corrected(ib, n_out) if oya is not None else None
+        if oya is None:
+            return None
+        ok, left = accuracy.explained(oa, ob, oya, rtol=sc.rtol)
+        if not ok:  # the finer level's correction is not worth making
+            log.debug("%s: the %d-element level's defect correction leaves %.2g of the change to %d elements",
+                      sc.mech.name, a.n, left, b.n)
+            return None
+        oyb = self.observe_corrected(ib, n_out)
         if oyb is None:
             return None
         return accuracy.defect_estimate((a.n, b.n), oa, ob, oya, oyb,
