@@ -423,22 +423,45 @@ def test_a_defect_estimate_is_believed_only_where_it_explains_the_change():
     assert not accuracy.promising(coarse, fine, ratio=2.0, order=4.0, rtol=1e-4)
 
 
-def test_the_four_bar_ends_on_an_honest_defect_estimate():
-    """The four-bar preset (geometric non-linearity) at its default rtol: the refinement stops
-    on two levels whose coarser correction explains their change (48/96 elements, where three
-    levels needed 192), and every link's peak deflection and stress is within its estimate of a
-    768-element solve (estimate / true between 1/3 and 10 where the error exceeds 1e-5)."""
+def _preset(name):
     import os
-    path = os.path.join(os.path.dirname(__file__), "..", "examples", "scenes", "four_bar.toml")
-    sc = kf.load_scene(path)[0]
+    return kf.load_scene(os.path.join(os.path.dirname(__file__), "..", "examples", "scenes", f"{name}.toml"))[0]
+
+
+def _solve_and_reference(sc, steps=768):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = kf.solve(sc)
-        ref = kf.solve(dataclasses.replace(sc, steps=768, estimate=False, rtol=None))
-    assert res.error.method == "defect" and res.error.met and res.elements < 192
+        return kf.solve(sc), kf.solve(dataclasses.replace(sc, steps=steps, estimate=False, rtol=None))
+
+
+def test_the_slider_crank_ends_on_an_honest_defect_estimate():
+    """The slider-crank preset at its default rtol: the refinement stops on two levels whose
+    coarser correction explains their change (24/48 elements, where three levels went on to 96),
+    and every peak is within its estimate of a 768-element solve (estimate / true between 1/3
+    and 10), the histories' estimate within rtol as that stop requires."""
+    sc = _preset("slider_crank")
+    res, ref = _solve_and_reference(sc)
+    assert res.error.method == "defect" and res.error.met and res.error.levels == (24, 48)
+    assert res.error.history <= sc.rtol
     for p, q in zip(res.peaks(), ref.peaks()):
         e = res.error.link(p.link)
         for est, a, b in ((e.deflection, p.deflection, q.deflection), (e.stress, p.stress, q.stress)):
             true = abs(a - b) / abs(b)
-            assert true <= sc.rtol and est >= true / 3, (p.link, est, true)
-            assert true <= 1e-5 or est <= 10 * true, (p.link, est, true)
+            assert true <= sc.rtol and true / 3 <= est <= 10 * true, (p.link, est, true)
+
+
+def test_the_four_bar_keeps_its_bearing_loads_within_rtol():
+    """The four-bar preset (geometric non-linearity): its 48/96 levels' defect correction explains
+    their peaks' change, but its coupler's axial force history (on which the bearing loads ride)
+    is estimated 16 % off there, so the refinement goes on to 192 elements, and every bearing's
+    peak force is within rtol of a 768-element solve (a review found them 3.4 % off when the
+    defect estimate stopped it on 96)."""
+    sc = _preset("four_bar")
+    res, ref = _solve_and_reference(sc)
+    assert res.elements >= 192 and res.error.met
+    L, R = res.loads(), ref.loads()
+    step = R.n // L.n
+    assert step * L.n == R.n and np.allclose(R.t[::step], L.t)
+    for joint, member in L.bearings:
+        a, b = L.magnitude(joint, member), R.magnitude(joint, member)[::step]
+        assert abs(a.max() - b.max()) <= sc.rtol * b.max(), (joint, member, a.max(), b.max())

@@ -37,8 +37,9 @@ from ..errors import InputError
 
 log = logging.getLogger(__name__)
 
-__all__ = ["LinkError", "ErrorEstimate", "Observables", "estimate", "ASSUMED_RATE", "SAFETY",
-           "ASYMPTOTIC_FRACTION", "HISTORY_FRACTION", "SETTLED_FRACTION", "CLEAR_FRACTION"]
+__all__ = ["LinkError", "ErrorEstimate", "Observables", "estimate", "defect_estimate", "explained", "promising",
+           "ASSUMED_RATE", "SAFETY", "ASYMPTOTIC_FRACTION", "HISTORY_FRACTION", "SETTLED_FRACTION",
+           "CLEAR_FRACTION", "EXPLAINED", "READ_NOISE"]
 
 #: Factor on every estimate: two levels whose errors have opposite signs differ
 #: by less than the coarser one's error, which the rate alone does not see
@@ -70,17 +71,21 @@ CLEAR_FRACTION = 0.01
 #: (the danger before the asymptotic range) does not stall twice in a row this
 #: far below the tolerance on levels that resolve its mode.
 SETTLED_FRACTION = 0.01
+#: A one-level defect-corrected estimate (:mod:`kedfem.solvers.defect`) is believed when the
+#: coarser of two levels, corrected by its own estimate, is within this fraction of their
+#: difference from the finer one, in every link's peak deflection and stress (with
+#: :data:`READ_NOISE` for the read-out's round-off): the estimate then explains the change the
+#: refinement made. The defect estimate is 0.2 .. 0.7 of the true error before the elements
+#: resolve the modes that carry it and 1.0 .. 1.2 after (``benchmarks/defect_probe.py``); a
+#: coarse estimate off by more than half leaves more than half the change unexplained.
+EXPLAINED = 0.5
+#: Relative change of a peak below which two levels' difference is read-out round-off (the
+#: peaks of a 1 rpm linkage differ by 1e-12 .. 1e-9 between levels); :func:`explained` allows it,
+#: and no more (rtol / 100 at rtol 1e-2 let a crank-rocker pass with half its change unexplained).
+READ_NOISE = 1e-7
 #: Rate credited to a two-level estimate, per scheme: below the scheme's
 #: asymptotic rate for values read between element ends, so that a pair of
 #: solves before the asymptotic range is not under-estimated.
-#: A one-level defect-corrected estimate (:mod:`kedfem.solvers.defect`) is believed when the
-#: coarser of two levels, corrected by its own estimate, is within this fraction of their
-#: difference from the finer one, in every peak and history (with :data:`SETTLED_FRACTION` of
-#: ``rtol`` for read-out noise): the estimate then explains the change the refinement made. The
-#: defect estimate is 0.2 .. 0.7 of the true error before the elements resolve the modes that
-#: carry it and 1.0 .. 1.2 after (``benchmarks/defect_probe.py``); a coarse estimate off by more
-#: than half leaves more than half the change unexplained.
-EXPLAINED = 0.5
 ASSUMED_RATE = {"radau3": 3.0, "radau2": 2.0, "gauss3": 3.0, "gauss2": 2.0, "magnus2": 2.0,
                 "foh": 1.0, "zoh": 1.0, "fourier": 2.0}
 
@@ -219,13 +224,15 @@ class ErrorEstimate:
         """The peak errors meet ``rtol`` and the estimate can be believed.
 
         Believed: three levels (a measured rate) whose coarser pair resolves
-        the relevant modes.
+        the relevant modes, or two whose coarser one's defect correction explains their
+        change (``method="defect"``).
         """
         return (self.rtol is None or self.peak <= self.rtol) and self.reliable
 
     @property
     def reliable(self) -> bool:
-        """Three levels with a measured rate, the coarser two resolving the relevant modes."""
+        """Three levels with a measured rate (or two levels with an explained defect correction),
+        the coarser ones resolving the relevant modes."""
         return self.observed and self.resolved
 
     def link(self, name: str) -> LinkError:
@@ -247,6 +254,7 @@ class ErrorEstimate:
         tol = f"; tolerance {self.rtol:.0e} {'met' if self.met else 'NOT MET'}" if self.rtol else ""
         rel = "" if self.reliable else "; UNRELIABLE: " + (
             "coarser solve does not resolve the relevant modes" if not self.resolved
+            else "the coarser level's defect correction does not explain the change" if self.method == "defect"
             else "needs three levels")
         return (f"peaks {self.peak:.1e}, histories {self.history:.1e} (time elements {lv}, {how}"
                 f"{tol}{rel})")
@@ -426,14 +434,13 @@ def promising(coarse: Observables, fine: Observables, *, ratio: float, order: fl
     return change / (ratio ** order - 1.0) <= rtol
 
 
-def explained(coarse: Observables, fine: Observables, coarse_corrected: Observables, *,
-              rtol: float) -> tuple[bool, float]:
+def explained(coarse: Observables, fine: Observables, coarse_corrected: Observables) -> tuple[bool, float]:
     """Does the coarser level's defect correction explain the change of the peaks to the finer
     level? The coarser level corrected by it is within :data:`EXPLAINED` of the change from the
-    finer one, in every link's peak deflection and stress, with :data:`SETTLED_FRACTION` of
-    ``rtol`` for read-out noise. Returns the verdict and the largest fraction of a change left."""
+    finer one, in every link's peak deflection and stress, with :data:`READ_NOISE` for the
+    read-out's round-off. Returns the verdict and the largest fraction of a change left."""
     change, left = _peak_differences(fine, coarse), _peak_differences(fine, coarse_corrected)
-    ok = bool(np.all(left <= EXPLAINED * change + SETTLED_FRACTION * rtol))
+    ok = bool(np.all(left <= EXPLAINED * change + READ_NOISE))
     return ok, float(np.max(left / np.maximum(change, 1e-300), initial=0.0))
 
 
@@ -468,14 +475,14 @@ def defect_estimate(levels: tuple[int, int], coarse: Observables, fine: Observab
     order : float
         The scheme's order between element ends (the largest rate credited).
     rtol : float
-        The tolerance (the read-out noise allowance is :data:`SETTLED_FRACTION` of it).
+        The tolerance.
 
     Returns
     -------
     ErrorEstimate
         With ``method="defect"``; ``rate`` is the one the peaks' change and estimate imply.
     """
-    ok, left = explained(coarse, fine, coarse_corrected, rtol=rtol)
+    ok, left = explained(coarse, fine, coarse_corrected)
     change = _peak_differences(fine, coarse)
     pk = _peak_differences(fine, fine_corrected)
     ratio = levels[1] / levels[0]

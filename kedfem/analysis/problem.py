@@ -337,7 +337,8 @@ class PeriodicProblem:
         self.chord = bool(chord)
         # the last chord step's solution and its tangent's change since the frozen one
         self._last_chord: tuple | None = None
-        self._kept: _Frozen | None = None  # the factorised tangent at the last iteration's end
+        self._kept: _Frozen | None = None  # the factorised tangent at the last converged iteration's end
+        self._converged = False
         self.chord_steps = 0
         self.kinematics = tb - ta
         self.assembly = time.perf_counter() - tb
@@ -460,6 +461,7 @@ class PeriodicProblem:
         if fresh:
             self._chord = None
         self._iterating = True
+        self._converged = False  # set by _orbit_multipliers when the iteration returns
         try:
             yield
         finally:
@@ -467,7 +469,7 @@ class PeriodicProblem:
             # refinement's bookkeeping and a continuation's cache): the next starts with a full step;
             # the last tangent near the solution stays for the defect estimate (:meth:`corrected`)
             # until :meth:`release`
-            self._kept = self._chord
+            self._kept = self._chord if self._converged else None
             self._iterating, self._chord = False, None
 
     def release(self) -> None:
@@ -480,6 +482,7 @@ class PeriodicProblem:
         (:meth:`kedfem.solvers.collocation.Resolver.multipliers`, to first order in the
         tangent's change: the square of a change of at most :data:`CHORD_CHANGE`; 10-25 ms on
         192 elements, so only the result's level asks)."""
+        self._converged = bool(solved.converged)
         d = solved.discrete
         last, self._last_chord = self._last_chord, None
         if not getattr(d, "chord", False) or last is None or last[0] is not d.raw:
@@ -534,6 +537,10 @@ class PeriodicProblem:
         """
         if not defect.available(discrete):
             return None
+        raw = discrete.raw
+        if raw.n != self.n or not (raw.edges is None and self.edges is None or (
+                raw.edges is not None and self.edges is not None and np.array_equal(raw.edges, self.edges))):
+            return None  # solved on other elements (a continuation's own problem): not this system's
         terms = self.terms
         M, C, K, Q = terms.M, terms.C, terms.K, terms.Q
         if self.state:
@@ -546,10 +553,10 @@ class PeriodicProblem:
 
         def resolve(load):
             if kept is not None:
-                # the tangent factorised within CHORD_CHANGE of the solution: its response to the
+                # the tangent factorised within 2 CHORD_CHANGE of the solution: its response to the
                 # defect is off by about that fraction of the estimate, for a triangular solve per
-                # element instead of a solve
-                return self.scheme.discrete(kept.resolver.solve(load))
+                # element instead of a solve (the solution it returns holds no factorisations)
+                return self.scheme.discrete(dataclasses.replace(kept.resolver.solve(load), resolver=None))
             return self.scheme.solve(M, C, K, load, self.period, self.n, **options)
 
         out = defect.corrected(discrete, M, C, K, Q, resolve)

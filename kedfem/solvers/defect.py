@@ -18,9 +18,11 @@ response over the cycle: est / true 1.0 .. 1.2 once the elements resolve the mod
 the error, 0.2 .. 0.7 before. The pipeline therefore believes it only where it also explains
 the change between two levels (:meth:`kedfem.analysis.pipeline._Run.defect_estimate`).
 
-For a non-linear scene the system is the tangent one about the converged iterate (the state
-terms in tangent form reproduce the non-linear forces there to first order; ``P - u`` is of
-the order of the error).
+For a non-linear scene the defect is that of the tangent system about the converged iterate (the
+state terms in tangent form reproduce the non-linear forces there to first order; ``P - u`` is
+of the order of the error); the response to it may come from a tangent factorised at an earlier
+iterate near the solution (:meth:`kedfem.analysis.problem.PeriodicProblem.corrected`), which
+changes the estimate by about that iterate's relative distance.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ import math
 
 import numpy as np
 
+from ..errors import InputError
 from . import collocation
 from .schemes import Discrete
 
@@ -61,14 +64,23 @@ def _basis(theta: np.ndarray, d: int) -> np.ndarray:
     return pw @ _H5
 
 
+def offered(scheme: str) -> bool:
+    """The estimate reads solves of this scheme: a stiffly accurate collocation (Radau IIA) of
+    stage order at least 3 (``radau3``)."""
+    try:
+        tab = collocation.tableau(scheme)
+    except InputError:  # an exponential hold or Fourier: no collocation tableau
+        return False
+    return bool(tab.c[-1] == 1.0 and tab.stage_order >= 3)
+
+
 def available(discrete: Discrete) -> bool:
     """The solve is a stiffly accurate collocation (Radau IIA) of stage order at least 3
     (``radau3``), whose element-end states and accelerations the estimate reads. With ``radau2``
     (stage order 2) the end stage's acceleration is too rough for the quintic interpolant: the
     estimate came out 5x the true error on 24 elements (a test)."""
     raw = discrete.raw
-    return (isinstance(raw, collocation.CollocationSolution) and raw.stage_V is not None
-            and collocation.stiffly_accurate(raw.scheme) and collocation.tableau(raw.scheme).stage_order >= 3)
+    return isinstance(raw, collocation.CollocationSolution) and raw.stage_V is not None and offered(raw.scheme)
 
 
 class _Hermite:
