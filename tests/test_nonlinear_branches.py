@@ -218,3 +218,32 @@ def test_a_relaxed_iteration_from_an_interpolated_start_takes_no_chord_step(monk
     U, Uref = s.discrete.instant_states()[0], ref.discrete.instant_states()[0]
     assert s.converged and np.linalg.norm(U - Uref) <= 1e-6 * np.linalg.norm(Uref)
     assert collocation.kinematic_defect(*ref.discrete.instant_states(), fine.period) < 1e-12
+
+
+def test_a_level_reached_by_continuation_keeps_its_elements_snapped_to_the_kinks(monkeypatch):
+    """A level whose Newton fails is reached by continuation in speed, whose problems at the other
+    speeds are on uniform elements; the target's own problem (elements ending where the block
+    crosses the rocker's nodes) is pinned, so a continuation of more speeds than the family keeps
+    does not end on uniform elements (a review found it did, with two problems kept: the level's
+    result then compared with levels on snapped elements)."""
+    from kedfem.analysis import branch, pipeline
+    from kedfem.catalogue import build
+    monkeypatch.setattr(branch.Family, "KEEP", 2)
+    seen = []
+    orig = pipeline._Run.homotopy
+
+    def homotopy(self, prob, failed, eps, origin="the linear response"):
+        out = orig(self, prob, failed, eps, origin)
+        seen.append((prob.edges, out.discrete.raw.edges, out.converged))
+        return out
+
+    monkeypatch.setattr(pipeline._Run, "homotopy", homotopy)
+    sc = kf.Scene(build("inverted_slider_crank"), effects=("inertia", "coupling", "axial_stiffening",
+                                                           "geometric_nonlinearity"),
+                  damping=kf.ModalDamping(0.02), max_iter=1, rtol=1e-3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = kf.solve(sc)
+    assert seen and res.error.met
+    for want, got, converged in seen:
+        assert converged and want is not None and got is not None and np.array_equal(want, got)

@@ -90,14 +90,26 @@ class Family:
         Drive cycles per period of the response (2: period doubled).
     """
 
+    #: problems kept, the most recently used (besides the pinned ones)
+    KEEP = 6
+
     def __init__(self, scene_of, n: int, scheme, periods: int = 1):
         self.scene_of, self.n, self.scheme, self.periods = scene_of, int(n), scheme, int(periods)
         self._cache: OrderedDict = OrderedDict()
+        self._pinned: dict = {}
         self.solves = 0
 
+    def pin(self, lam: float, prob: PeriodicProblem) -> None:
+        """Use ``prob`` at ``lam`` for the family's lifetime (a caller's own problem there: the
+        refinement's level at the scene's speed, on elements snapped to the data's kinks, which a
+        problem made here on uniform elements is not)."""
+        self._pinned[float(lam)] = prob
+
     def problem(self, lam: float) -> PeriodicProblem:
-        """The problem at ``lam`` (the last few are kept)."""
+        """The problem at ``lam`` (pinned, or one of the last :attr:`KEEP` made)."""
         key = float(lam)
+        if key in self._pinned:
+            return self._pinned[key]
         if key in self._cache:
             self._cache.move_to_end(key)
             return self._cache[key]
@@ -108,7 +120,7 @@ class Family:
         field = damping_field(sc, model, cycle, ni)  # where it is cheaper than eigenproblems
         prob = PeriodicProblem(sc, model, cycle, self.scheme, self.n, damping_field=field, periods=self.periods)
         self._cache[key] = prob
-        while len(self._cache) > 6:
+        while len(self._cache) > self.KEEP:
             self._cache.popitem(last=False)
         return prob
 

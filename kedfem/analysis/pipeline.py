@@ -449,7 +449,8 @@ class _Run:
         if self._bar is not None:
             self._bar.set_postfix_str(f"{prob.n} time elements, continuation in speed", refresh=True)
         fam = Family(lambda s: dataclasses.replace(sc, speed=s), prob.n, self.scheme)
-        fam._cache[float(w)] = prob
+        fam.pin(w, prob)  # the target on this level's own elements (a continuation of more speeds than
+        # the family keeps evicted it, and the level came out on uniform elements where it has kinks)
         t0 = time.perf_counter()
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
