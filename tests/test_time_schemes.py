@@ -228,6 +228,8 @@ def test_an_estimate_far_inside_rtol_with_converging_histories_is_met_clearly():
     est = accuracy.estimate(*_levels(1e-6, 1e-3), **kw)
     assert not est.asymptotic and est.clear and est.met and est.peak <= 1e-5
     assert est.history > 1e-3  # the histories' estimate stays as large as their differences say
+    # met is on the peaks; the one line says the histories are beyond rtol (bearing loads)
+    assert "met on the peaks, histories beyond it" in est.describe()
     near = accuracy.estimate(*_levels(3e-5, 1e-3), **kw)
     assert not near.asymptotic and not near.clear and near.peak > 1e-5
     stalled = accuracy.estimate(*_levels(1e-6, 1e-3, burst_rate=-0.5), **kw)  # the burst grows

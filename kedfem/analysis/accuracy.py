@@ -251,7 +251,11 @@ class ErrorEstimate:
                f"{'' if self.asymptotic else ', before the asymptotic range: an over-estimate'}"
                if self.observed else f"assumed rate {self.rate:.1f}")
         lv = "/".join(str(n) for n in self.levels)
-        tol = f"; tolerance {self.rtol:.0e} {'met' if self.met else 'NOT MET'}" if self.rtol else ""
+        tol = f"; tolerance {self.rtol:.0e} {'met' if self.met else 'NOT MET'} on the peaks" if self.rtol else ""
+        if self.rtol and self.history > self.rtol:
+            # the tolerance is on the peaks: say so where the histories (the axial forces, on which
+            # the bearing loads ride) are estimated beyond it (a new user read "met" as all of it)
+            tol += f", histories beyond it (bearing loads to about {self.history:.0e})"
         rel = "" if self.reliable else "; UNRELIABLE: " + (
             "coarser solve does not resolve the relevant modes" if not self.resolved
             else "the coarser level's defect correction does not explain the change" if self.method == "defect"
