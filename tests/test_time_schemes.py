@@ -423,6 +423,9 @@ def test_a_defect_estimate_is_believed_only_where_it_explains_the_change():
     # the peaks changed by 2.4e-3: Richardson at order 4 says 1.6e-4 for the finer level
     assert accuracy.promising(coarse, fine, ratio=2.0, order=4.0, rtol=2e-4)
     assert not accuracy.promising(coarse, fine, ratio=2.0, order=4.0, rtol=1e-4)
+    # with the histories (the peak's history is the only one here): 1.35 x 2.4e-3 / (2^3 - 1) = 4.6e-4
+    assert accuracy.promising(coarse, fine, ratio=2.0, order=4.0, rtol=5e-4, assumed=3.0)
+    assert not accuracy.promising(coarse, fine, ratio=2.0, order=4.0, rtol=4e-4, assumed=3.0)
 
 
 def _preset(name):

@@ -430,12 +430,19 @@ def estimate(levels: list[int], obs: list[Observables], *, assumed: float,
                          float(p_hi), asymptotic=bool(asym), settled=bool(settled), clear=clear)
 
 
-def promising(coarse: Observables, fine: Observables, *, ratio: float, order: float, rtol: float) -> bool:
+def promising(coarse: Observables, fine: Observables, *, ratio: float, order: float, rtol: float,
+              assumed: float | None = None) -> bool:
     """Two levels whose peaks' change, taken as Richardson's at the scheme's ``order``, is within
-    ``rtol``: the finer level may meet it, and a defect estimate (:func:`defect_estimate`) is
-    worth its two extra solves."""
+    ``rtol``, and (with ``assumed``) whose histories' change at that rate, times :data:`SAFETY`,
+    is too (the floor of a defect estimate's histories, :func:`defect_estimate`): the finer
+    level may meet it, and a defect estimate is worth its two extra solves."""
     change = float(_peak_differences(fine, coarse).max(initial=0.0))
-    return change / (ratio ** order - 1.0) <= rtol
+    if change / (ratio ** order - 1.0) > rtol:
+        return False
+    if assumed is None:
+        return True
+    hist = float(_history_differences(fine, coarse).max(initial=0.0))
+    return SAFETY * hist / (ratio ** assumed - 1.0) <= rtol
 
 
 def explained(coarse: Observables, fine: Observables, coarse_corrected: Observables) -> tuple[bool, float]:

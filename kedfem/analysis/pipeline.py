@@ -1024,7 +1024,10 @@ class _Run:
                 or a.problem is None or b.problem is None:
             return None  # (a coarser level that does not resolve the excited modes does not explain the change)
         oa, ob = self.observe(ia, n_out), self.observe(ib, n_out)
-        if not accuracy.promising(oa, ob, ratio=b.n / a.n, order=self.scheme.dense_order, rtol=sc.rtol):
+        # (the histories too: the refinement stops on a defect estimate only with them within rtol)
+        assumed = accuracy.ASSUMED_RATE.get(self.scheme.name, 1.0)
+        if not accuracy.promising(oa, ob, ratio=b.n / a.n, order=self.scheme.dense_order, rtol=sc.rtol,
+                                  assumed=assumed):
             return None
         oya = self.observe_corrected(ia, n_out)
         if oya is None:
@@ -1037,8 +1040,7 @@ class _Run:
         oyb = self.observe_corrected(ib, n_out)
         if oyb is None:
             return None
-        return accuracy.defect_estimate((a.n, b.n), oa, ob, oya, oyb,
-                                        assumed=accuracy.ASSUMED_RATE.get(self.scheme.name, 1.0),
+        return accuracy.defect_estimate((a.n, b.n), oa, ob, oya, oyb, assumed=assumed,
                                         order=self.scheme.dense_order, rtol=sc.rtol)
 
     def estimate(self, n_out: int, need: int = 0) -> accuracy.ErrorEstimate | None:
