@@ -229,7 +229,7 @@ def test_an_estimate_far_inside_rtol_with_converging_histories_is_met_clearly():
     assert not est.asymptotic and est.clear and est.met and est.peak <= 1e-5
     assert est.history > 1e-3  # the histories' estimate stays as large as their differences say
     # met is on the peaks; the one line says the histories are beyond rtol (bearing loads)
-    assert "met on the peaks, histories beyond it" in est.describe()
+    assert "met on the peaks, histories beyond it (bearing loads up to" in est.describe()
     near = accuracy.estimate(*_levels(3e-5, 1e-3), **kw)
     assert not near.asymptotic and not near.clear and near.peak > 1e-5
     stalled = accuracy.estimate(*_levels(1e-6, 1e-3, burst_rate=-0.5), **kw)  # the burst grows
@@ -470,3 +470,49 @@ def test_the_four_bar_keeps_its_bearing_loads_within_rtol():
     for joint, member in L.bearings:
         a, b = L.magnitude(joint, member), R.magnitude(joint, member)[::step]
         assert abs(a.max() - b.max()) <= sc.rtol * b.max(), (joint, member, a.max(), b.max())
+
+
+def test_explained_allows_round_off_and_no_more():
+    """``accuracy.explained`` allows READ_NOISE (1e-7) for read-out round-off, not a share of rtol:
+    a coarser correction that leaves 60 % of a 1e-4 change is not an explanation (rtol / 100 let
+    a crank-rocker at rtol 1e-2 pass with half its change left)."""
+    _levels_, obs = _levels(1e-4 / 240.0, 0.0, levels=(96, 192, 384), rate=4.0)
+    coarse, fine = obs[0], obs[1]
+    truth = _levels(0.0, 0.0, levels=(96,))[1][0]
+    change = accuracy._peak_differences(fine, coarse).max()
+    assert 5e-5 < change < 2e-4
+    h = truth.deflection_history[0].copy()
+    h[10] = fine.deflection_history[0][10] + 0.6 * (coarse.deflection_history[0][10] - fine.deflection_history[0][10])
+    partly = dataclasses.replace(truth, deflection=np.array([h[10]]), deflection_history=(h,))
+    ok, left = accuracy.explained(coarse, fine, partly)
+    assert not ok and left == pytest.approx(0.6, rel=1e-6)
+    assert accuracy.explained(coarse, fine, truth)[0]
+
+
+def test_a_corrected_solution_holds_no_factorisations_and_refuses_other_systems():
+    """``PeriodicProblem.corrected`` on a non-linear level (the four-bar's geometric non-linearity):
+    it uses the tangent Newton's converged iteration kept, its result holds no factorisation once the
+    problem releases its own (a review found every corrected level holding its LU factors), a failed
+    iteration keeps none, and a solve of another system (another speed, the same elements) gets no
+    correction."""
+    import gc
+    from kedfem.analysis import pipeline
+    from kedfem.solvers.collocation import Resolver
+    sc = _preset("four_bar")
+    run = pipeline._Run(sc)
+    _ti, prob = run.problem(48)
+    failed = prob.solve(eps=1e-12, max_iter=1)
+    assert not failed.converged and prob._kept is None
+    out = prob.solve(eps=1e-8, max_iter=20)
+    assert out.converged and prob._kept is not None
+    out = dataclasses.replace(out, orbit=None)  # (a chord step's orbit keeps its tangent by design)
+    y = prob.corrected(out.discrete)
+    assert y is not None and y.resolver is None
+    prob.release()
+    gc.collect()
+    assert not [o for o in gc.get_objects() if isinstance(o, Resolver)]
+    u = out.discrete.at(np.linspace(0.0, sc.period, 50, endpoint=False))[0]
+    assert 0 < np.abs(u - y.at(np.linspace(0.0, sc.period, 50, endpoint=False))[0]).max() < 5e-2 * np.abs(u).max()
+    other = pipeline._Run(dataclasses.replace(sc, speed=1.1 * sc.mech.drives[0].speed))
+    _t2, prob2 = other.problem(48)
+    assert prob.corrected(prob2.solve(eps=1e-6, max_iter=20).discrete) is None

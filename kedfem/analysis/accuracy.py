@@ -255,7 +255,7 @@ class ErrorEstimate:
         if self.rtol and self.history > self.rtol:
             # the tolerance is on the peaks: say so where the histories (the axial forces, on which
             # the bearing loads ride) are estimated beyond it (a new user read "met" as all of it)
-            tol += f", histories beyond it (bearing loads to about {self.history:.0e})"
+            tol += f", histories beyond it (bearing loads up to {self.history:.1e} off)"
         rel = "" if self.reliable else "; UNRELIABLE: " + (
             "coarser solve does not resolve the relevant modes" if not self.resolved
             else "the coarser level's defect correction does not explain the change" if self.method == "defect"

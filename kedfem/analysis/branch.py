@@ -102,7 +102,12 @@ class Family:
     def pin(self, lam: float, prob: PeriodicProblem) -> None:
         """Use ``prob`` at ``lam`` for the family's lifetime (a caller's own problem there: the
         refinement's level at the scene's speed, on elements snapped to the data's kinks, which a
-        problem made here on uniform elements is not)."""
+        problem made here on uniform elements is not). The continuation's predictor carries the
+        neighbours' values instant by instant onto its instants (a fraction of an element apart
+        where they are snapped: Newton's start, not its answer)."""
+        if prob.n != self.n or prob.periods != self.periods:
+            raise ValueError(f"pin: a problem on {prob.n} elements over {prob.periods} period(s) in a family of "
+                             f"{self.n} over {self.periods}")
         self._pinned[float(lam)] = prob
 
     def problem(self, lam: float) -> PeriodicProblem:

@@ -461,7 +461,7 @@ class PeriodicProblem:
         if fresh:
             self._chord = None
         self._iterating = True
-        self._converged = False  # set by _orbit_multipliers when the iteration returns
+        self._converged = False  # set by _orbit_multipliers when the iteration returns (inside this context)
         try:
             yield
         finally:
@@ -533,14 +533,16 @@ class PeriodicProblem:
         -------
         kedfem.solvers.schemes.Discrete or None
             Its difference from ``discrete`` is the estimated error; None for schemes the estimate
-            does not read (:func:`kedfem.solvers.defect.available`) or a result that is not finite.
+            does not read (:func:`kedfem.solvers.defect.available`), a solve on other elements or of
+            another period, or a result that is not finite.
         """
         if not defect.available(discrete):
             return None
         raw = discrete.raw
-        if raw.n != self.n or not (raw.edges is None and self.edges is None or (
-                raw.edges is not None and self.edges is not None and np.array_equal(raw.edges, self.edges))):
-            return None  # solved on other elements (a continuation's own problem): not this system's
+        if raw.n != self.n or raw.scheme != self.scheme.name or not np.isclose(raw.period, self.period, rtol=1e-12) \
+                or not (raw.edges is None and self.edges is None or (
+                    raw.edges is not None and self.edges is not None and np.array_equal(raw.edges, self.edges))):
+            return None  # solved on other elements, at another speed or period: not this system's
         terms = self.terms
         M, C, K, Q = terms.M, terms.C, terms.K, terms.Q
         if self.state:
@@ -598,8 +600,10 @@ class PeriodicProblem:
             d, hist, converged, used = fixed_point_or_anderson(
                 self.step, self.instants.size, self.N, self.period, eps=eps, max_iter=max_iter, method=method,
                 x0=x0, merit=merit)
-        return self._orbit_multipliers(Solved(d, bool(converged), len(hist), tuple(float(h) for h in hist),
-                                              used, list(caught)))
+            # inside the iteration's context, as Newton's: it notes the convergence before the
+            # context keeps the last tangent (a review found the fixed-point paths never kept one)
+            return self._orbit_multipliers(Solved(d, bool(converged), len(hist), tuple(float(h) for h in hist),
+                                                  used, list(caught)))
 
     def polish(self, solved: Solved, *, eps: float, max_iter: int, rate=None) -> Solved:
         """Iterate a solve on to a tighter ``eps`` from where it stopped.
@@ -632,6 +636,6 @@ class PeriodicProblem:
                     list(caught), out.rate or solved.rate, out.predicted))
             d, hist, conv, _m = fixed_point(self.step, self.instants.size, self.N, self.period, eps=eps,
                                             max_iter=max_iter, method=solved.method, x0=x0)
-        return self._orbit_multipliers(Solved(d, bool(conv), solved.iterations + len(hist),
-                                              solved.history + tuple(float(h) for h in hist), solved.method,
-                                              list(caught)))
+            return self._orbit_multipliers(Solved(d, bool(conv), solved.iterations + len(hist),
+                                                  solved.history + tuple(float(h) for h in hist), solved.method,
+                                                  list(caught)))
