@@ -932,7 +932,8 @@ class _Run:
                   else "by orders of magnitude")
             note = (f"{self.levels[-1].n} time elements damp the modes up to {self._stab_f:.4g} Hz numerically "
                     f"by more than {self.scene.rtol or 1e-3:.0e} per cycle: the spectral radius is too low, "
-                    f"{by} ({why}; a resolved radius needs about {self._stab_need} elements)")
+                    f"{by} ({why}; a resolved radius needs about {self._stab_need} elements: "
+                    f"Scene(steps={self._stab_need}) or more)")
         return Stability(rho[-1], err, verdict, self.scheme.name, self.levels[-1].n, note,
                          conservative=bool(undamped(self.scene) and verdict == "marginal"))
 

@@ -460,7 +460,13 @@ class PeriodicResult:
 
     @property
     def n(self) -> int:
+        """Output instants (the time elements are :attr:`elements`)."""
         return int(self.t.size)
+
+    @property
+    def period(self) -> float:
+        """The cycle's duration [s] (one drive revolution: :attr:`scene`'s period)."""
+        return float(self.scene.period)
 
     def dof(self, label: str) -> np.ndarray:
         """Time history (n,) of one DOF by label."""
