@@ -357,3 +357,34 @@ def test_a_load_whose_table_lies_outside_the_travel_is_named():
 def test_crank_angles_that_look_like_radians_warn():
     with pytest.warns(UserWarning, match="in degrees and all lie within 2 pi"):
         kf.Profile.crank_angle([0.0, math.pi], [0.0, 1.0])
+
+
+def test_a_load_that_steps_at_a_dead_centre_is_named_before_the_solve(caplog):
+    """A one-stroke forming load whose table ends at the bottom dead centre drops to zero there in
+    one step, which rings modes far above the drive's harmonics and multiplies the time elements
+    (a new user's toggle press: 6144 elements, 12 s, where its two-stroke version took 768). The
+    resolution step logs a warning that says so and what costs fewer; the two-stroke version
+    (forming, then springback on the return stroke, as examples/press.py) logs none."""
+    import logging
+    from kedfem.analysis import pipeline
+
+    def scene(both):
+        m = mechanisms.build("slider_crank", elements=4)
+        x = kf.kinematics(m, 720).position("B")[:, 0]
+        bdc = float(x.max())
+        m.load("forming", "B", force=(-200.0, 0.0), profile=kf.Profile.position(
+            "B", (1.0, 0.0), [bdc - 0.01, bdc], [0.0, 1.0], stroke="forward", smooth=True))
+        if both:
+            m.load("springback", "B", force=(-200.0, 0.0), profile=kf.Profile.position(
+                "B", (1.0, 0.0), [bdc - 0.003, bdc], [0.0, 1.0], stroke="return", smooth=True))
+        return kf.Scene(m, effects=("inertia", "coupling", "axial_stiffening", "loads"),
+                        damping=kf.ModalDamping(0.02))
+
+    with caplog.at_level(logging.WARNING, logger="kedfem.analysis.pipeline"):
+        n_step, _f = pipeline._Run(scene(False)).resolution()
+        stepped = [r.getMessage() for r in caplog.records if "a process load steps" in r.getMessage()]
+        caplog.clear()
+        n_smooth, _f = pipeline._Run(scene(True)).resolution()
+        smooth = [r.getMessage() for r in caplog.records if "a process load steps" in r.getMessage()]
+    assert stepped and "one-stroke load ending at a dead centre" in stepped[0] and not smooth
+    assert n_step > n_smooth

@@ -55,6 +55,9 @@ OUTPUT_STEPS = 360
 COARSE_EPS = 0.1
 #: time elements of the first level of a tolerance-driven solve, per scheme (doubled
 #: until the elements resolve the relevant modes, see ``_Run.resolution``)
+#: a process load whose harmonics ask for this many times the elements the motion alone asks for
+#: is named in a logged warning (:meth:`_Run.resolution`)
+LOAD_WARN_FACTOR = 4
 START_ELEMENTS = {"radau3": 12, "radau2": 16, "gauss3": 12, "gauss2": 16, "magnus2": 45,
                   "foh": 45, "zoh": 90, "fourier": 17}
 #: largest ``omega h`` at which a level counts as resolving a mode (one element per period)
@@ -724,6 +727,20 @@ class _Run:
         n = int(math.ceil(2.0 * math.pi * f_res * T / RESOLVE_OMEGA_H))
         log.info("%s: excitation reaches %.4g Hz, modes to resolve up to %.4g Hz: >= %d elements",
                  sc.mech.name, reach, f_res, n)
+        base = max(f_kin, f_fr)
+        if f_ld > base and self._load_steps():
+            # a process load whose profile steps or kinks rings modes far above the drive's
+            # harmonics: say so where it multiplies the elements (a new user's one-stroke forming
+            # load dropped to zero at the dead centre: 6144 elements and 12 s where 768 did)
+            own = lo <= base
+            if own.any():
+                own |= lo <= float(hi[own].max()) + f_kin
+            n0 = int(math.ceil(2.0 * math.pi * float(hi[own].max()) * T / RESOLVE_OMEGA_H)) if own.any() else 1
+            if n >= LOAD_WARN_FACTOR * n0:
+                log.warning("%s: a process load steps (a one-stroke load ending at a dead centre, or a table "
+                            "without smooth=True): its harmonics reach %.4g Hz, which asks for >= %d time "
+                            "elements where the motion alone asks for %d; a smooth end (a second load for the "
+                            "other stroke, as examples/press.py) costs fewer", sc.mech.name, f_ld, n, n0)
         return n, f_res
 
     def _motion_band(self, samples: int = 512, level: float = 1e-6) -> float:
@@ -749,6 +766,24 @@ class _Run:
             at[ld.joint] = at.get(ld.joint, 0.0) + load_force(mo, ld)
         X = np.concatenate(list(at.values()), axis=1)  # (samples, 2 per joint)
         return _harmonic_reach(X, self.scene.period, level, f_low)
+
+    def _load_steps(self, samples: int = 16384, jump: float = 0.2) -> bool:
+        """A process load on some joint changes by more than ``jump`` of its largest between two of
+        ``samples`` instants per cycle: it steps (a one-stroke load at a dead centre, a table
+        without smoothing), where a smooth one, however steep, changes by a sliver per sample."""
+        mech = self.scene.mech
+        loads = [ld for ld in mech.loads.values() if ld.profile is not None]
+        if not loads or "loads" not in self.scene.effects:
+            return False
+        mo = self._band_motion(samples)
+        at: dict[str, np.ndarray] = {}
+        for ld in loads:
+            at[ld.joint] = at.get(ld.joint, 0.0) + load_force(mo, ld)
+        for F in at.values():
+            big = float(np.abs(F).max())
+            if big > 0 and float(np.abs(np.diff(F, axis=0, append=F[:1])).max()) > jump * big:
+                return True
+        return False
 
     def _band_motion(self, samples: int):
         """The rigid-body motion at ``samples`` equally spaced instants (computed once)."""
