@@ -1,0 +1,153 @@
+"""A graded family of time elements for the tolerance-driven solve: a research probe (not used by kedfem).
+
+Issue 25 asks for time elements where the motion needs them. This probe grades them the simplest
+way that keeps the estimates' argument (levels of one family, every element halved):
+
+1. one uniform radau3 level on ``N0`` elements, its defect-corrected solution
+   (:mod:`kedfem.solvers.defect`), the largest response error in each element ``e_j``;
+2. a density per second ``rho_j = e_j^(1/4) / h_j`` (an element of error ``e`` needs ``e^(1/4)``
+   pieces for a given error, the dense output being of order 4), at least an eighth of its largest,
+   and at least half its neighbours' (three passes); the time warp ``s(t)`` its normalised integral;
+3. every level of ``kf.solve`` on the edges ``t(s)`` of ``n`` uniform ``s``-elements, those snapped
+   to the data's kinks in ``s`` (``snapped_edges``) and mapped back, by replacing
+   ``_Run.problem`` (the rest of the refinement, its estimates, resolution floor and stability
+   floor unchanged: they still count elements, not the longest one);
+
+and compares elements, time (the density's level not counted) and the true error against a
+uniform radau3 reference on ``NREF`` elements with the uniform ``kf.solve``.
+
+Measured (2026-11-27): the press at rtol 1e-3 96 graded elements against 192 uniform (true errors
+1.6e-6 and 7.4e-7, both far inside rtol) but at 1e-4 1536 against 384; the offset slider-crank at
+1e-3 384 against 768 (true 5.9e-5 and 6.9e-6, estimates honest); the Whitworth at 1e-3 768 against
+384. So grading by the error density alone helps where the error is local and the resolution
+floor does not bind, and costs elements where the longest graded element no longer resolves the
+excited modes, which the refinement's rules, counting elements, do not see: a graded family
+needs them to read the longest element (and the stability floor the elements' own lengths).
+
+Run::
+
+    cd /work/main && . .venv/bin/activate
+    OPENBLAS_NUM_THREADS=1 python benchmarks/graded_probe.py "press, forming load*" 1e-3,1e-4 3072 48
+    OPENBLAS_NUM_THREADS=1 python benchmarks/graded_probe.py "whitworth;offset_slider_crank*" 1e-3 3072 192
+
+Arguments: cases (``;``-separated names of ``benchmarks/error_estimate.py``'s cases), rtols
+(``,``-separated), ``NREF``, ``N0``.
+"""
+from __future__ import annotations
+
+import math
+import os
+import sys
+import time
+import warnings
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+sys.path.insert(0, os.path.join(HERE, ".."))
+import kedfem as kf  # noqa: E402
+from kedfem.analysis import pipeline  # noqa: E402
+from kedfem.analysis.problem import PeriodicProblem, snapped_edges  # noqa: E402
+import error_estimate  # noqa: E402
+
+CAP = 8.0      # largest ratio of the density
+ORDER = 4.0    # the dense output's order
+PER_ELEMENT = 16
+
+
+def density(scene, n0: int):
+    """The uniform level's edges (n0 + 1,) and the time warp's values there (the density's
+    normalised integral, 0 .. period)."""
+    run = pipeline._Run(scene)
+    run.resolution()
+    lv = run.level(n0)
+    y = run.corrected(0)
+    d = lv.discrete
+    T = scene.period
+    edges = d.raw.edges if d.raw.edges is not None else np.arange(n0 + 1) * (T / n0)
+    h = np.diff(edges)
+    t = (edges[:-1, None] + (np.arange(PER_ELEMENT) + 0.5)[None] / PER_ELEMENT * h[:, None]).ravel()
+    U, Y = d.at(t)[0], y.at(t)[0]
+    e = (np.abs(U - Y).max(axis=1) / np.abs(Y).max()).reshape(n0, PER_ELEMENT).max(axis=1)
+    rho = np.maximum(e, 1e-300) ** (1.0 / ORDER) / h  # pieces per second
+    rho = np.maximum(rho, rho.max() / CAP)
+    for _ in range(3):  # each element at least half its neighbours' density
+        rho = np.maximum(rho, 0.5 * np.maximum(np.roll(rho, 1), np.roll(rho, -1)))
+    warp = np.concatenate([[0.0], np.cumsum(rho * h)])
+    return edges, warp * (T / warp[-1])
+
+
+def graded_edges(n: int, T: float, edges0, warp, breaks) -> np.ndarray:
+    """``n`` elements uniform in the warped time, snapped to the kinks there, mapped back."""
+    b = np.mod(np.asarray(breaks, dtype=float), T)
+    s = snapped_edges(n, T, np.interp(b, edges0, warp))
+    if s is None:
+        s = np.arange(n + 1) * (T / n)
+    t = np.interp(s, warp, edges0)
+    t[0], t[-1] = 0.0, T
+    for x in b:  # the kinks' own values (the problem's left-limit stages look them up)
+        j = int(np.argmin(np.abs(t - x)))
+        if abs(t[j] - x) < 1e-9 * T:
+            t[j] = x
+    return t
+
+
+def solve_graded(scene, edges0, warp):
+    """``kf.solve`` with every level on the graded family (``_Run.problem`` replaced)."""
+    original = pipeline._Run.problem
+
+    def problem(self, n):
+        T = self.scene.period
+        e = graded_edges(n, T, edges0, warp, self.breaks())
+        ti = self.scheme.instants(n, T, e)
+        return ti, PeriodicProblem(self.scene, self.model, self.cycle, self.scheme, n,
+                                   damping_field=self.damping_field(n, True), stiff=self.stiff, edges=e,
+                                   kinks=self.breaks(), chord=True)
+
+    pipeline._Run.problem = problem
+    try:
+        t0 = time.perf_counter()
+        res = kf.solve(scene)
+        return res, time.perf_counter() - t0
+    finally:
+        pipeline._Run.problem = original
+
+
+def true_errors(res, ref):
+    """Largest true relative error of the peaks, and the smallest estimate / true above 1e-7."""
+    pairs = []
+    for p, r in zip(res.peaks(), ref.peaks()):
+        e = res.error.link(p.link)
+        for est, a, b in ((e.deflection, p.deflection, r.deflection), (e.stress, p.stress, r.stress)):
+            pairs.append((abs(a - b) / abs(b), est))
+    big = [est / t for t, est in pairs if t > 1e-7]
+    return max(t for t, _ in pairs), (min(big) if big else math.inf)
+
+
+def main(argv=None):
+    argv = sys.argv[1:] if argv is None else argv
+    names, rtols, n_ref, n0 = argv[0].split(";"), [float(x) for x in argv[1].split(",")], int(argv[2]), int(argv[3])
+    cases = error_estimate.cases(False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for name in names:
+            mech, kw = cases[name]
+            ref = kf.solve(kf.Scene(mech, steps=n_ref, estimate=False, **kw))
+            for rtol in rtols:
+                sc = kf.Scene(mech, rtol=rtol, **kw)
+                t0 = time.perf_counter()
+                uni = kf.solve(sc)
+                tu = time.perf_counter() - t0
+                gr, tg = solve_graded(sc, *density(sc, n0))
+                eu, ru = true_errors(uni, ref)
+                eg, rg = true_errors(gr, ref)
+                print(f"{name[:22]:22s} {rtol:.0e} uniform {uni.elements:5d} {tu:6.2f} s true {eu:.1e} est/true >= "
+                      f"{ru:.2f} | graded {gr.elements:5d} {tg:6.2f} s true {eg:.1e} est/true >= {rg:.2f} "
+                      f"(levels {'/'.join(map(str, gr.error.levels))})", flush=True)
+
+
+if __name__ == "__main__":
+    main()
