@@ -149,3 +149,19 @@ def test_overdamped_modes_are_named_not_nan(tmp_path):
     assert "non-oscillating" in text and "nan" not in text.lower().replace("non-oscillating", "")
     z = np.load(export.write_npz(res, tmp_path / "r.npz", f))
     assert np.all(np.isfinite(z["state_space"])) and not z["oscillating"].all()
+
+
+def test_the_writability_probe_goes_beside_the_output_folder(tmp_path, monkeypatch):
+    """``check_out_dir`` probes the folder the run's staging folder goes into, not the output folder:
+    a kill between creating and removing the probe left it in the last run's published folder (a
+    kill test found the folder mixing runs), and beside it the probe is named as a leftover that
+    ``clean_leftovers`` recognises."""
+    from kedfem.io import outdir, report
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / "summary.txt").write_text("run x")
+    monkeypatch.setattr(report.os, "unlink", lambda *a, **k: None)  # as if killed before the unlink
+    report.check_out_dir(out)
+    assert [p.name for p in out.iterdir()] == ["summary.txt"]
+    left = [p for p in tmp_path.iterdir() if p.name != "o"]
+    assert len(left) == 1 and outdir._LEFTOVER.match(left[0].name).group("name") == "o"

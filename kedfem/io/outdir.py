@@ -51,7 +51,8 @@ KNOWN = frozenset({
     "campbell.csv", "campbell_crossings.csv", "campbell.png", "stability_map.csv", "stability_map.png",
 })
 _HIDDEN_TMP = re.compile(r"^\..+\.(tmp|old|staging)-\d+-[0-9a-f]+")
-_LEFTOVER = re.compile(r"^\.(?P<name>.+)\.(staging|old)-(?P<pid>\d+)-[0-9a-f]+$")
+#: a killed run's staging or replaced folder, or its writability probe (``report.check_out_dir``)
+_LEFTOVER = re.compile(r"^\.(?P<name>.+)\.(staging|old|probe)-(?P<pid>\d+)-[0-9a-z_]+$")
 
 
 def _alive(pid: int) -> bool:

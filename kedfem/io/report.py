@@ -241,11 +241,15 @@ def write_outputs(res, freqs, peaks, out_dir: Path, stage: Stages, *, plots: boo
 
 def check_out_dir(out_dir: Path, label: str = "output folder") -> None:
     """An output folder that cannot be written is an input error before any work (a file is
-    created and removed in the nearest existing folder: permissions alone do not tell, e.g. in
-    /proc)."""
+    created and removed in the nearest existing folder above it, where the run's staging folder
+    goes: permissions alone do not tell, e.g. in /proc). Not in the output folder itself: a run
+    killed between the two left the probe in the last run's published folder (a kill test), and
+    beside it the probe is named as a leftover that :func:`kedfem.io.outdir.clean_leftovers` removes."""
     import tempfile
     p = Path(out_dir).absolute()
-    probe = p
+    if p.exists() and not p.is_dir():
+        raise InputError(f"{label} {out_dir}: {p} is a file, not a folder")
+    probe = p.parent
     while not probe.exists():
         if probe.parent == probe:
             break
@@ -255,7 +259,7 @@ def check_out_dir(out_dir: Path, label: str = "output folder") -> None:
     if probe.exists() and not os.access(probe, os.W_OK | os.X_OK):
         raise InputError(f"{label} {out_dir}: folder {probe} is not writable")
     try:
-        fd, name = tempfile.mkstemp(prefix=".kedfem-probe-", dir=probe)
+        fd, name = tempfile.mkstemp(prefix=f".{p.name}.probe-{os.getpid()}-", dir=probe)
         os.close(fd)
         os.unlink(name)
     except OSError as e:
