@@ -52,32 +52,22 @@ import kedfem as kf  # noqa: E402
 from kedfem.analysis import pipeline  # noqa: E402
 from kedfem.analysis.problem import PeriodicProblem, snapped_edges  # noqa: E402
 import error_estimate  # noqa: E402
+from grading_potential import ORDER, element_errors  # noqa: E402
 
 CAP = 8.0      # largest ratio of the density
-ORDER = 4.0    # the dense output's order
-PER_ELEMENT = 16
 
 
 def density(scene, n0: int):
     """The uniform level's edges (n0 + 1,) and the time warp's values there (the density's
     normalised integral, 0 .. period)."""
-    run = pipeline._Run(scene)
-    run.resolution()
-    lv = run.level(n0)
-    y = run.corrected(0)
-    d = lv.discrete
-    T = scene.period
-    edges = d.raw.edges if d.raw.edges is not None else np.arange(n0 + 1) * (T / n0)
+    edges, e, _need = element_errors(scene, n0)
     h = np.diff(edges)
-    t = (edges[:-1, None] + (np.arange(PER_ELEMENT) + 0.5)[None] / PER_ELEMENT * h[:, None]).ravel()
-    U, Y = d.at(t)[0], y.at(t)[0]
-    e = (np.abs(U - Y).max(axis=1) / np.abs(Y).max()).reshape(n0, PER_ELEMENT).max(axis=1)
     rho = np.maximum(e, 1e-300) ** (1.0 / ORDER) / h  # pieces per second
     rho = np.maximum(rho, rho.max() / CAP)
     for _ in range(3):  # each element at least half its neighbours' density
         rho = np.maximum(rho, 0.5 * np.maximum(np.roll(rho, 1), np.roll(rho, -1)))
     warp = np.concatenate([[0.0], np.cumsum(rho * h)])
-    return edges, warp * (T / warp[-1])
+    return edges, warp * (scene.period / warp[-1])
 
 
 def graded_edges(n: int, T: float, edges0, warp, breaks) -> np.ndarray:

@@ -47,21 +47,30 @@ ORDER = 4.0
 PER_ELEMENT = 16
 
 
-def potential(mech, kw, n: int, tols) -> dict:
-    """Per-element errors of one level on ``n`` elements and the element counts they imply."""
-    sc = kf.Scene(mech, rtol=1e-3, **kw)
-    run = pipeline._Run(sc)
+def element_errors(scene, n: int):
+    """One radau3 level of ``scene`` on ``n`` elements: its edges (n + 1,) [s], the largest
+    response error in each element by its defect correction (n,) [-] (relative to the largest
+    response), and the resolution floor (elements)."""
+    run = pipeline._Run(scene)
     need, _f = run.resolution()
     need = int(math.ceil(need * run.scheme.per_period))
     lv = run.level(n)
     y = run.corrected(0)
     d = lv.discrete
-    T = sc.period
-    edges = d.raw.edges if d.raw.edges is not None else np.arange(n + 1) * (T / n)
+    edges = d.raw.edges if d.raw.edges is not None else np.arange(n + 1) * (scene.period / n)
     h = np.diff(edges)
     t = (edges[:-1, None] + (np.arange(PER_ELEMENT) + 0.5)[None] / PER_ELEMENT * h[:, None]).ravel()
     U, Y = d.at(t)[0], y.at(t)[0]
     e = (np.abs(U - Y).max(axis=1) / np.abs(Y).max()).reshape(n, PER_ELEMENT).max(axis=1)
+    return edges, e, need
+
+
+def potential(mech, kw, n: int, tols) -> dict:
+    """Per-element errors of one level on ``n`` elements and the element counts they imply."""
+    sc = kf.Scene(mech, rtol=1e-3, **kw)
+    T = sc.period
+    edges, e, need = element_errors(sc, n)
+    h = np.diff(edges)
     floor = h / (T / need) if need > 1 else np.zeros(n)
     out = {"need": need, "max": float(e.max()),
            "top": float(np.sort(e)[-max(1, n // 10):].sum() / e.sum())}

@@ -450,7 +450,11 @@ def explained(coarse: Observables, fine: Observables, coarse_corrected: Observab
     level? The coarser level corrected by it is within :data:`EXPLAINED` of the change from the
     finer one, in every link's peak deflection and stress, with :data:`READ_NOISE` for the
     read-out's round-off. Returns the verdict and the largest fraction of a change left."""
-    change, left = _peak_differences(fine, coarse), _peak_differences(fine, coarse_corrected)
+    return _explained(_peak_differences(fine, coarse), _peak_differences(fine, coarse_corrected))
+
+
+def _explained(change: np.ndarray, left: np.ndarray) -> tuple[bool, float]:
+    """:func:`explained` from the peaks' change and what the correction left of it (n_links, 2)."""
     ok = bool(np.all(left <= EXPLAINED * change + READ_NOISE))
     return ok, float(np.max(left / np.maximum(change, 1e-300), initial=0.0))
 
@@ -493,8 +497,8 @@ def defect_estimate(levels: tuple[int, int], coarse: Observables, fine: Observab
     ErrorEstimate
         With ``method="defect"``; ``rate`` is the one the peaks' change and estimate imply.
     """
-    ok, left = explained(coarse, fine, coarse_corrected)
     change = _peak_differences(fine, coarse)
+    ok, left = _explained(change, _peak_differences(fine, coarse_corrected))
     pk = _peak_differences(fine, fine_corrected)
     ratio = levels[1] / levels[0]
     hi = np.maximum(_history_differences(fine, fine_corrected),

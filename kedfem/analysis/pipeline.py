@@ -717,14 +717,22 @@ class _Run:
         self._friction_reach = f_fr if f_fr > f_kin else 0.0
         f_ld = self._load_band(level=1e-3 * sc.rtol, f_low=float(lo.min()) if lo.size else 0.0)
         reach = max(f_kin, f_fr, f_ld)
-        excited = lo <= reach
-        if excited.any():  # the time variation mixes an excited mode into its neighbours
-            excited |= lo <= float(hi[excited].max()) + f_kin
-        if not excited.any():
+
+        def elements(reach: float) -> tuple[int, float] | None:
+            """Elements and highest frequency [Hz] to resolve for an excitation up to ``reach``
+            (None: no mode within it)."""
+            excited = lo <= reach
+            if not excited.any():
+                return None
+            excited |= lo <= float(hi[excited].max()) + f_kin  # the time variation mixes an excited
+            f_res = float(hi[excited].max())                   # mode into its neighbours
+            return int(math.ceil(2.0 * math.pi * f_res * T / RESOLVE_OMEGA_H)), f_res
+
+        found = elements(reach)
+        if found is None:
             log.info("%s: no mode within the excitation (%.4g Hz): quasi-static", sc.mech.name, reach)
             return 1, 0.0
-        f_res = float(hi[excited].max())
-        n = int(math.ceil(2.0 * math.pi * f_res * T / RESOLVE_OMEGA_H))
+        n, f_res = found
         log.info("%s: excitation reaches %.4g Hz, modes to resolve up to %.4g Hz: >= %d elements",
                  sc.mech.name, reach, f_res, n)
         base = max(f_kin, f_fr)
@@ -732,10 +740,7 @@ class _Run:
             # a process load whose profile steps or kinks rings modes far above the drive's
             # harmonics: say so where it multiplies the elements (a new user's one-stroke forming
             # load dropped to zero at the dead centre: 6144 elements and 12 s where 768 did)
-            own = lo <= base
-            if own.any():
-                own |= lo <= float(hi[own].max()) + f_kin
-            n0 = int(math.ceil(2.0 * math.pi * float(hi[own].max()) * T / RESOLVE_OMEGA_H)) if own.any() else 1
+            n0 = (elements(base) or (1, 0.0))[0]
             if n >= LOAD_WARN_FACTOR * n0:
                 log.warning("%s: a process load steps (a one-stroke load ending at a dead centre, or a table "
                             "without smooth=True): its harmonics reach %.4g Hz, which asks for >= %d time "
@@ -756,30 +761,30 @@ class _Run:
         ``f_low`` [Hz] weighted by ``(f_low / f)^2``: it drives the stiffer modes there, whose
         response to it is smaller by their stiffness (a pump's smooth stroke load reached 1.9 kHz
         unweighted, 3072 time elements where 384 met the tolerance to 1e-5)."""
-        mech = self.scene.mech
-        loads = [ld for ld in mech.loads.values() if ld.profile is not None]
-        if not loads or "loads" not in self.scene.effects:
+        at = self._joint_loads(samples)
+        if not at:
             return 0.0
-        mo = self._band_motion(samples)
-        at: dict[str, np.ndarray] = {}  # the loads on a joint together (two one-stroke loads meet)
-        for ld in loads:
-            at[ld.joint] = at.get(ld.joint, 0.0) + load_force(mo, ld)
         X = np.concatenate(list(at.values()), axis=1)  # (samples, 2 per joint)
         return _harmonic_reach(X, self.scene.period, level, f_low)
+
+    def _joint_loads(self, samples: int) -> dict[str, np.ndarray]:
+        """The process loads (declared with a profile) on each joint together [N] (samples, 2), at
+        ``samples`` equally spaced instants (two one-stroke loads on a joint meet); empty without
+        one or without ``loads`` among the scene's effects."""
+        loads = [ld for ld in self.scene.mech.loads.values() if ld.profile is not None]
+        if not loads or "loads" not in self.scene.effects:
+            return {}
+        mo = self._band_motion(samples)
+        at: dict[str, np.ndarray] = {}
+        for ld in loads:
+            at[ld.joint] = at.get(ld.joint, 0.0) + load_force(mo, ld)
+        return at
 
     def _load_steps(self, samples: int = 16384, jump: float = 0.2) -> bool:
         """A process load on some joint changes by more than ``jump`` of its largest between two of
         ``samples`` instants per cycle: it steps (a one-stroke load at a dead centre, a table
         without smoothing), where a smooth one, however steep, changes by a sliver per sample."""
-        mech = self.scene.mech
-        loads = [ld for ld in mech.loads.values() if ld.profile is not None]
-        if not loads or "loads" not in self.scene.effects:
-            return False
-        mo = self._band_motion(samples)
-        at: dict[str, np.ndarray] = {}
-        for ld in loads:
-            at[ld.joint] = at.get(ld.joint, 0.0) + load_force(mo, ld)
-        for F in at.values():
+        for F in self._joint_loads(samples).values():
             big = float(np.abs(F).max())
             if big > 0 and float(np.abs(np.diff(F, axis=0, append=F[:1])).max()) > jump * big:
                 return True

@@ -539,9 +539,10 @@ class PeriodicProblem:
         if not defect.available(discrete):
             return None
         raw = discrete.raw
-        if raw.n != self.n or raw.scheme != self.scheme.name or not np.isclose(raw.period, self.period, rtol=1e-12) \
-                or not (raw.edges is None and self.edges is None or (
-                    raw.edges is not None and self.edges is not None and np.array_equal(raw.edges, self.edges))):
+        same_edges = (raw.edges is None) == (self.edges is None) and (
+            raw.edges is None or np.array_equal(raw.edges, self.edges))
+        if raw.n != self.n or raw.scheme != self.scheme.name or not same_edges \
+                or not np.isclose(raw.period, self.period, rtol=1e-12):
             return None  # solved on other elements, at another speed or period: not this system's
         terms = self.terms
         M, C, K, Q = terms.M, terms.C, terms.K, terms.Q

@@ -597,19 +597,12 @@ class Assembler:
         for key, els, m in self._narrow_parts(gname, E.shape[-1]):  # each bucket at its own width
             Ek, Rk = E[:, els, :, :m], R[:, els, :, :m]  # (a block widens a few elements only)
             Et = np.swapaxes(Ek, -1, -2)
-            # added in place where the arrays allow it (a (nt, N, N) temporary and its sum saved)
-            if Kx is not None:
-                X = np.broadcast_to(Et @ Kx[:, els] @ Rk, (nt,) + (Ek.shape[1], m, m))
-                if dK.flags.c_contiguous:
-                    self.model.scatter_matrix(key, X, out=dK)
-                else:
-                    dK += self.model.scatter_matrix(key, X)
+            if Kx is not None:  # added into dK, dQ (in place: no (nt, N, N) temporary)
+                self.model.scatter_matrix(key, np.broadcast_to(Et @ Kx[:, els] @ Rk, (nt,) + (Ek.shape[1], m, m)),
+                                          out=dK)
             if Qx is not None:
-                X = np.broadcast_to((Et @ Qx[:, els, :, None])[..., 0], (nt,) + (Ek.shape[1], m))
-                if dQ.flags.c_contiguous:
-                    self.model.scatter_vector(key, X, out=dQ)
-                else:
-                    dQ += self.model.scatter_vector(key, X)
+                self.model.scatter_vector(key, np.broadcast_to((Et @ Qx[:, els, :, None])[..., 0],
+                                                               (nt,) + (Ek.shape[1], m)), out=dQ)
 
     def _narrow_parts(self, gname: str, width: int) -> list:
         """``(key, elements, width)`` of a group's buckets (:meth:`FEModel.buckets`) when the whole

@@ -94,10 +94,8 @@ class Scatter:
         return self._scatter_cache[key]
 
     def _scatter_parts(self, gname: str, terms: ActiveTerms, out: np.ndarray, matrix: bool) -> np.ndarray:
-        """Scatter :class:`ActiveTerms` into ``out`` (nt, N, N) or (nt, N)."""
-        if not out.flags.c_contiguous:  # the entries must land in out itself, not in a copy
-            out += self._scatter_parts(gname, terms, np.zeros(out.shape), matrix)
-            return out
+        """Scatter :class:`ActiveTerms` into ``out`` (nt, N, N) or (nt, N), C-contiguous (the callers
+        :meth:`scatter_matrix` and :meth:`scatter_vector` see to it)."""
         flat = out.reshape(terms.nt, -1)
         for rows, cols, data in terms.parts:
             idx, starts, targets = (self._sub_operator if matrix else self._sub_vector_operator)(gname, cols)
@@ -130,16 +128,19 @@ class Scatter:
         """Scatter element matrices ``(nt, n_el, m, m)`` (or :class:`ActiveTerms`) to dense
         ``(nt, N, N)``.
 
-        With ``out`` (nt, N, N), C-contiguous, the entries are added to it.
+        With ``out`` (nt, N, N), the entries are added to it (in place where it is C-contiguous).
         """
         N = self.n_dof
+        if out is not None and not out.flags.c_contiguous:  # the entries must land in out, not a copy
+            out += self.scatter_matrix(gname, data)
+            return out
         if isinstance(data, ActiveTerms):
             return self._scatter_parts(gname, data, np.zeros((data.nt, N, N)) if out is None else out, True)
         (mat, _vec) = self._operators(gname)
         nt = data.shape[0]
         if out is None:
             out = np.zeros((nt, N, N))
-        if data.shape[-1] >= ACTIVE_WIDTH and data.shape[0] > 1 and out.flags.c_contiguous:
+        if data.shape[-1] >= ACTIVE_WIDTH and data.shape[0] > 1:
             self._scatter_active(gname, data, out)
             return out
         self._segment_add(mat, np.ascontiguousarray(data).reshape(nt, -1), out.reshape(nt, N * N))
@@ -148,6 +149,9 @@ class Scatter:
     def scatter_vector(self, gname: str, data: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Scatter element vectors ``(nt, n_el, m)`` (or :class:`ActiveTerms`) to dense ``(nt, N)``
         (added to ``out`` if given)."""
+        if out is not None and not out.flags.c_contiguous:
+            out += self.scatter_vector(gname, data)
+            return out
         if isinstance(data, ActiveTerms):
             return self._scatter_parts(gname, data, np.zeros((data.nt, self.n_dof)) if out is None else out, False)
         (_mat, vec) = self._operators(gname)

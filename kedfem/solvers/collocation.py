@@ -399,16 +399,7 @@ def dense(name: str, Z: np.ndarray, stages: np.ndarray, period: float, t, edges=
     ndarray, shape (k, m)
     """
     tab = tableau(name)
-    n = Z.shape[0]
-    tt = np.mod(np.asarray(t, dtype=float), period)
-    if edges is None:
-        x = tt * (n / period)
-        k = np.minimum(np.floor(x).astype(int), n - 1)
-        theta = x - k
-    else:
-        e = np.asarray(edges, dtype=float)
-        k = np.clip(np.searchsorted(e, tt, side="right") - 1, 0, n - 1)
-        theta = (tt - e[k]) / (e[k + 1] - e[k])
+    k, theta = locate(t, Z.shape[0], period, edges)
     nodes = np.concatenate([[0.0], tab.c])
     # Lagrange weights on (0, c_1 .. c_s), shape (k, s + 1)
     diff = theta[:, None] - nodes[None, :]
@@ -417,6 +408,26 @@ def dense(name: str, Z: np.ndarray, stages: np.ndarray, period: float, t, edges=
         others = np.delete(np.arange(nodes.size), j)
         w[:, j] = np.prod(diff[:, others], axis=1) / np.prod(nodes[j] - nodes[others])
     return w[:, :1] * Z[k] + np.einsum("ks,ksm->km", w[:, 1:], stages[k])
+
+
+def locate(t, n: int, period: float, edges=None) -> tuple[np.ndarray, np.ndarray]:
+    """Element (k,) of int and fraction in it (k,) of instants ``t`` [s] (taken modulo
+    ``period``) on ``n`` elements, uniform or with ``edges`` (n + 1,) [s]."""
+    tt = np.mod(np.asarray(t, dtype=float), period)
+    if edges is None:
+        x = tt * (n / period)
+        k = np.minimum(np.floor(x).astype(int), n - 1)
+        return k, x - k
+    e = np.asarray(edges, dtype=float)
+    k = np.clip(np.searchsorted(e, tt, side="right") - 1, 0, n - 1)
+    return k, (tt - e[k]) / (e[k + 1] - e[k])
+
+
+def apply_at_instants(X, Y) -> np.ndarray:
+    """``X_t Y_t`` (n_t, N) for matrices ``X`` (n_t, N, N) at the instants, or one (N, N) for all,
+    and vectors ``Y`` (n_t, N)."""
+    X = np.asarray(X, dtype=float)
+    return Y @ X.T if X.ndim == 2 else np.einsum("tij,tj->ti", X, Y)
 
 
 # --------------------------------------------------------------------------
@@ -650,12 +661,8 @@ def residual(M, C, K, Q, U, V, period: float, scheme: str = "radau3", edges=None
     V = np.asarray(V, dtype=float)
     _h, acc = _stage_accelerations(V, period, scheme, edges)
     acc = acc.reshape(U.shape)
-
-    def apply(X, Y):
-        X = np.asarray(X, dtype=float)
-        return Y @ X.T if X.ndim == 2 else np.einsum("tij,tj->ti", X, Y)
-
-    return apply(M, acc) + apply(C, V) + apply(K, U) - np.asarray(Q, dtype=float)
+    return (apply_at_instants(M, acc) + apply_at_instants(C, V) + apply_at_instants(K, U)
+            - np.asarray(Q, dtype=float))
 
 
 def kinematic_defect(U, V, period: float, scheme: str = "radau3", edges=None) -> float:

@@ -28,16 +28,14 @@ changes the estimate by about that iterate's relative distance.
 from __future__ import annotations
 
 import dataclasses
-import logging
 import math
 
 import numpy as np
 
 from ..errors import InputError
 from . import collocation
+from .collocation import apply_at_instants
 from .schemes import Discrete
-
-log = logging.getLogger(__name__)
 
 __all__ = ["available", "corrected"]
 
@@ -88,20 +86,15 @@ class _Hermite:
 
     def __init__(self, sol: collocation.CollocationSolution):
         n, s, N = sol.stage_V.shape
-        self.n, self.N, self.period = n, N, sol.period
-        self.edges = (np.arange(n + 1) * (sol.period / n) if sol.edges is None
-                      else np.asarray(sol.edges, dtype=float))
-        self.h = np.diff(self.edges)
-        _h, acc = collocation._stage_accelerations(sol.stage_V.reshape(n * s, N), sol.period, sol.scheme,
-                                                   sol.edges)
+        self.n, self.period, self.edges = n, sol.period, sol.edges
+        self.h, acc = collocation._stage_accelerations(sol.stage_V.reshape(n * s, N), sol.period, sol.scheme,
+                                                       sol.edges)
         A = np.roll(acc[:, -1], 1, axis=0)  # the end stage of the element before: at the element start
         self.U, self.V, self.A = sol.U, sol.V, A
 
     def locate(self, t):
         """Element and fraction of each instant ``t`` [s] (modulo the period)."""
-        tt = np.mod(np.asarray(t, dtype=float), self.period)
-        k = np.clip(np.searchsorted(self.edges, tt, side="right") - 1, 0, self.n - 1)
-        return k, (tt - self.edges[k]) / self.h[k]
+        return collocation.locate(t, self.n, self.period, self.edges)
 
     def eval(self, k, theta, d: int) -> np.ndarray:
         """``d``-th time derivative (k, N) at element ``k``, fraction ``theta``."""
@@ -120,11 +113,6 @@ class _Hermite:
         return self.eval(k, th, 1)
 
 
-def _apply(X, Y):
-    X = np.asarray(X, dtype=float)
-    return Y @ X.T if X.ndim == 2 else np.einsum("tij,tj->ti", X, Y)
-
-
 def defect(sol: collocation.CollocationSolution, M, C, K, Q) -> tuple[_Hermite, np.ndarray]:
     """The Hermite interpolant of ``sol`` and its defect (n s, N) [N] at the collocation instants.
 
@@ -141,8 +129,8 @@ def defect(sol: collocation.CollocationSolution, M, C, K, Q) -> tuple[_Hermite, 
     n, s = P.n, c.size
     k = np.repeat(np.arange(n), s)
     th = np.tile(c, n)
-    d = (_apply(M, P.eval(k, th, 2)) + _apply(C, P.eval(k, th, 1)) + _apply(K, P.eval(k, th, 0))
-         - np.asarray(Q, dtype=float))
+    d = (apply_at_instants(M, P.eval(k, th, 2)) + apply_at_instants(C, P.eval(k, th, 1))
+         + apply_at_instants(K, P.eval(k, th, 0)) - np.asarray(Q, dtype=float))
     return P, d
 
 
