@@ -58,7 +58,7 @@ from .periodic import (MAX_CONDITION, MIN_NODES, _check_mass, _run_parallel, _So
 from .threads import one_blas_thread
 
 __all__ = ["Tableau", "tableau", "SCHEMES", "solve", "CollocationSolution", "dense", "instants", "residual",
-           "stiffly_accurate", "kinematic_defect", "Resolver"]
+           "stiffly_accurate", "kinematic_defect", "Resolver", "locate", "apply_at_instants"]
 
 log = logging.getLogger(__name__)
 
