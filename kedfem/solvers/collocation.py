@@ -483,12 +483,23 @@ class _Elements:
         const = M.ndim == 2
         if const:
             M, C, K = (np.broadcast_to(X, (s, N, N))[None] for X in (M, C, K))
-        h = np.reshape(np.asarray(h, dtype=float), (-1, 1, 1, 1, 1))
-        Is = np.eye(s)
-        W = (Is[None, :, None, :, None] * M[:, :, :, None, :]
-             + h * tab.A[None, :, None, :, None] * C[:, :, :, None, :]
-             + h * h * tab.A2[None, :, None, :, None] * K[:, :, :, None, :])
-        W = W.reshape(W.shape[0], s * N, s * N)
+        h = np.reshape(np.asarray(h, dtype=float), (-1,))
+        L = max(M.shape[0], h.size)
+        hA = h[:, None, None] * tab.A          # (L, s, s)
+        h2A2 = (h * h)[:, None, None] * tab.A2
+        W = np.empty((L, s, N, s, N))
+        tmp = np.empty((L, N, N))
+        # block (j, l): delta_jl M_j + h A_jl C_j + h^2 (A^2)_jl K_j, filled block by block (the
+        # 5-D broadcast formed three (L, sN, sN) temporaries: 1.8x the time at N = 36, s = 3)
+        for j in range(s):
+            for ell in range(s):
+                blk = W[:, j, :, ell, :]
+                np.multiply(hA[:, j, ell, None, None], C[:, j], out=blk)
+                if j == ell:
+                    blk += M[:, j]
+                np.multiply(h2A2[:, j, ell, None, None], K[:, j], out=tmp)
+                blk += tmp
+        W = W.reshape(L, s * N, s * N)
         return W[0] if const else W
 
     def _R(self, C, K, h):
