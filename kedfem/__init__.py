@@ -29,3 +29,12 @@ from .analysis.critical import CriticalSpeed, critical_speed
 from .io.design_plots import StabilityMap, stability_map
 from .analysis.continuation import Bifurcation, Branch, BranchPoint, continuation
 from .io.branch_files import read as read_branch, write as write_branch
+
+# the io wing's writers and readers, handed to the analysis wing (which never imports the io wing):
+# res.write, res.summary, a Campbell result's files, critical_speed of a scene dictionary
+from .analysis import hooks as _hooks  # noqa: E402
+from .io import design_plots as _design_plots, report as _report  # noqa: E402
+
+_hooks.provide(write_result=_report.write_result, format_summary=_report.format_summary,
+               campbell_csv=_design_plots.write_campbell_csv, crossings_csv=_design_plots.write_crossings_csv,
+               campbell_chart=_design_plots.campbell_chart, scene_from_dict=scene_from_dict)

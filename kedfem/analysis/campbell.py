@@ -37,8 +37,10 @@ from ..errors import InputError
 from ..fe.effects import LINEAR_EFFECTS
 from ..model.mechanism import Mechanism
 from .modal import natural_frequencies
+from .hooks import hook
 from .progress import bar
 from .scene import Scene, _int
+from ..units import RPM_PER_RAD_S
 
 __all__ = ["Crossing", "CampbellResult", "campbell", "crossings", "linear_effects", "scene_at", "cycle_frequencies",
            "check_speeds", "BAND_STATS"]
@@ -49,8 +51,6 @@ log = logging.getLogger(__name__)
 BAND_STATS = ("min", "mean", "max")
 #: Campbell methods: modal analysis on the rigid-body motion, or the frequencies of a periodic solve.
 METHODS = ("modal", "solve")
-#: rev/min per rad/s
-RPM_PER_RAD_S = 60.0 / (2.0 * math.pi)
 
 
 def linear_effects(effects: Sequence[str]) -> tuple[str, ...]:
@@ -259,19 +259,16 @@ class CampbellResult:
     def to_csv(self, path) -> Path:
         """Write the bands: one row per speed and mode (``speed_rad_s``, ``speed_rpm``, ``mode``,
         ``f_min_Hz``, ``f_mean_Hz``, ``f_max_Hz``); see :func:`kedfem.io.design_plots.write_campbell_csv`."""
-        from ..io.design_plots import write_campbell_csv
-        return write_campbell_csv(self, path)
+        return hook("campbell_csv")(self, path)
 
     def crossings_to_csv(self, path) -> Path:
         """Write the crossings, one row each (see :func:`kedfem.io.design_plots.write_crossings_csv`)."""
-        from ..io.design_plots import write_crossings_csv
-        return write_crossings_csv(self, path)
+        return hook("crossings_csv")(self, path)
 
     def plot(self, path) -> Path:
         """Campbell diagram (PNG): Hz vs rpm, shaded bands, harmonic lines, crossings marked
         (:func:`kedfem.io.design_plots.campbell_chart`)."""
-        from ..io.design_plots import campbell_chart
-        return campbell_chart(self, path)
+        return hook("campbell_chart")(self, path)
 
 
 # ------------------------------------------------------------- crossings

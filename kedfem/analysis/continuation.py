@@ -35,13 +35,12 @@ from ..solvers import schemes
 from .branch import Family, Point, Tracker, classify, in_unit
 from .results import LinkPeaks, PeriodicResult
 from .scene import Scene
+from ..units import RPM_PER_RAD_S
 
 __all__ = ["continuation", "Branch", "BranchPoint", "Bifurcation", "RPM_PER_RAD_S"]
 
 log = logging.getLogger(__name__)
 
-#: rev/min per rad/s
-RPM_PER_RAD_S = 60.0 / (2.0 * math.pi)
 #: relative tolerance of a located bifurcation's parameter value
 LOCATE_RTOL = 1e-4
 

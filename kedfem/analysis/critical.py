@@ -59,6 +59,7 @@ import numpy as np
 from ..checks import choice, flag
 from ..errors import AccuracyWarning, ConvergenceWarning, InputError, KedError, UnboundedResponseError
 from .campbell import RPM_PER_RAD_S, cycle_frequencies, linear_effects, scene_at
+from .hooks import hook
 from .progress import bar
 from .scene import Scene, _int
 
@@ -363,8 +364,7 @@ def critical_speed(scene, lo: float, hi: float, *, rtol: float = 5e-3, kind: str
                          f"{max_solves} for the refinement (give max_solves >= scan + 3)")
     nodes = _int("critical_speed", "nodes", nodes, 3)
     if isinstance(scene, Mapping):
-        from ..io.scenefile import scene_from_dict
-        scene = scene_from_dict(scene, trust=trust)
+        scene = hook("scene_from_dict")(scene, trust=trust)
     base = scene_at(scene, lo, owner="critical_speed")
     effects = linear_effects(base.effects) if (linear or kind == "buckling") else base.effects
     if kind == "parametric":

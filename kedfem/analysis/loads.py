@@ -42,7 +42,7 @@ from ..model.mechanism import Mechanism
 from ..motion.kinematics import Motion
 from ..motion.kinetostatics import JointForces, KnownForces, kinetostatics
 from .recovery import periodic_rates
-from .results import _vertex
+from .peak_search import parabolic_vertex
 
 __all__ = ["FRAME", "LoadHistory", "LoadPeak", "MachineLoads", "machine_loads", "loads_from_forces", "CSV_COLUMNS"]
 
@@ -223,7 +223,7 @@ class MachineLoads:
         y = np.abs(values)
         k = int(np.argmax(y))
         # periodic parabolic vertex through the largest sample and its neighbours
-        value, shift = _vertex(y, k, periodic=True) if self.whole_cycle else (float(y[k]), 0.0)
+        value, shift = parabolic_vertex(y, k, periodic=True) if self.whole_cycle else (float(y[k]), 0.0)
         step = self.speed * self.period / self.n if self.whole_cycle else 0.0
         angle = float(np.mod(self.crank_angle[k] + shift * step, 2.0 * math.pi))
         return LoadPeak(quantity, joint, member, response, value, angle, float(np.sqrt(np.mean(y * y))))

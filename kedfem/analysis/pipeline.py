@@ -43,6 +43,7 @@ from .plausibility import check_passive_links, check_result
 from .problem import STREAM_BYTES, PeriodicProblem, constant_or_sampled, damping_field, snapped_edges
 from .results import PeriodicResult, Sampler, Stability, Timings, stability_verdict
 from .scene import MAX_STEPS, Scene
+from ..units import RPM_PER_RAD_S
 
 __all__ = ["solve", "assemble_scene", "START_ELEMENTS", "OUTPUT_STEPS"]
 
@@ -442,7 +443,6 @@ class _Run:
         elements, and tens of them take minutes.
         """
         from .branch import Family, reach
-        from .campbell import RPM_PER_RAD_S
         from ..errors import NonlinearSolveError
         sc = self.scene
         w = sc.mech.drives[0].speed

@@ -11,6 +11,8 @@ import numpy as np
 
 from ..model import elements as el
 from . import recovery
+from .hooks import hook
+from .peak_search import grid_peak as _grid_peak, parabolic_vertex as _vertex
 from .modal import Frequencies, frequencies_over_cycle, modes_at
 from ..fe.model import FEModel
 from ..checks import choice, floats, integer, name, real
@@ -246,44 +248,6 @@ def _abscissa(lk, station: float, per_element: int) -> float:
     return float(min(max(lk.nodes[e] + (x - e) * lk.element_lengths[e], 0.0), lk.length))
 
 
-def _vertex(y: np.ndarray, k: int, periodic: bool = False) -> tuple[float, float]:
-    """Parabolic vertex through ``y[k-1:k+2]`` (wrapping round with ``periodic``): (value, offset
-    from ``k`` in samples)."""
-    if periodic or 0 < k < y.size - 1:
-        ym, yp = y[k - 1], y[(k + 1) % y.size]
-        den = ym - 2.0 * y[k] + yp
-        if den < 0.0:
-            dlt = 0.5 * (ym - yp) / den
-            return float(y[k] - 0.25 * (ym - yp) * dlt), float(dlt)
-    return float(y[k]), 0.0
-
-
-def _grid_peak(vals: np.ndarray, t: np.ndarray, vertex: bool = True) -> tuple[float, float, float | None]:
-    """Largest value of a history (n,) or (n, stations), with parabolic vertices if ``vertex``.
-
-    Returns the value, its instant (vertex in time at the best station) and
-    its station as a fractional index (vertex along the stations at the best
-    instant; None for a scalar history). Without ``vertex`` the largest sample
-    (a lower bound that a refinement may only raise).
-    """
-    if not vertex:
-        flat = vals if vals.ndim == 1 else vals.max(axis=1)
-        k = int(np.argmax(flat))
-        return float(flat[k]), float(t[k]), (None if vals.ndim == 1 else float(np.argmax(vals[k])))
-    if vals.ndim == 1:
-        k = int(np.argmax(vals))
-        v, dk = _vertex(vals, k)
-        return v, float(t[k] + dk * (t[1] - t[0] if t.size > 1 else 0.0)), None
-    flat = vals.max(axis=1)
-    k = int(np.argmax(flat))
-    j = int(np.argmax(vals[k]))
-    v_t, dk = _vertex(vals[:, j], k)
-    v_x, dj = _vertex(vals[k], j)
-    # the two vertices are corrections of the same sample: add them
-    return (float(vals[k, j] + (v_t - vals[k, j]) + (v_x - vals[k, j])),
-            float(t[k] + dk * (t[1] - t[0] if t.size > 1 else 0.0)), float(j + dj))
-
-
 def stability_verdict(rho: float, error: float | None, tol: float = 1e-9) -> str:
     """``"stable"``, ``"unstable"`` or ``"marginal"`` for a spectral radius and its error."""
     margin = max(tol, error or 0.0)
@@ -423,10 +387,9 @@ class PeriodicResult:
         """The summary table ``kedfem run`` prints: scene, frequencies over the cycle, peaks with
         their errors, fatigue, stability, iteration (no mesh check, no files)."""
         from .fatigue import fatigue_table
-        from ..io.report import format_summary
         n_modes = integer("summary", "n_modes", n_modes, 1, MAX_MODES)
         freqs = self.frequencies(n_modes, nodes=list(range(0, self.n, max(1, self.n // 180))))
-        return format_summary(self, freqs, self.peaks(), stages={}, files=[], out_dir=None, source="python",
+        return hook("format_summary")(self, freqs, self.peaks(), stages={}, files=[], out_dir=None, source="python",
                               scene_time=self.timings.total, fatigue=fatigue_table(self), loads=self.loads())
 
     def loads(self, elastic: bool = True):
@@ -455,8 +418,7 @@ class PeriodicResult:
         kedfem.io.report.Report
             The folder, the files and the summary text.
         """
-        from ..io.report import write_result
-        return write_result(self, out_dir, **options)
+        return hook("write_result")(self, out_dir, **options)
 
     @property
     def n(self) -> int:

@@ -19,10 +19,10 @@ import numpy as np
 from ..errors import InputError
 from .export import atomic_path
 from .sweep import csv_cells
+from ..units import RPM_PER_RAD_S
 
 __all__ = ["to_csv", "plot", "write", "read"]
 
-RPM_PER_RAD_S = 60.0 / (2.0 * math.pi)
 
 
 def _branches(branch):

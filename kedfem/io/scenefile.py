@@ -105,6 +105,7 @@ from ..errors import InputError, KedError, did_you_mean
 from ..fe.effects import ModalDamping, Rayleigh, check_effects
 from ..model.mechanism import MAX_ELEMENTS as _MODEL_MAX_ELEMENTS, Mechanism
 from ..trust import Trust, UntrustedCodeError
+from ..units import RAD_S_PER_RPM as RPM  # [rad/s] per rpm
 
 __all__ = ["SceneFileError", "UntrustedSceneError", "Outputs", "Preset", "SceneSpec", "load_scene", "load_sweep",
            "load_spec", "read_scene_file", "scene_from_dict", "scene_family", "parse_scene", "with_overrides", "mechanism_parameters",
@@ -113,8 +114,6 @@ __all__ = ["SceneFileError", "UntrustedSceneError", "Outputs", "Preset", "SceneS
 
 log = logging.getLogger(__name__)
 
-#: rad/s per rev/min
-RPM = 2.0 * math.pi / 60.0
 
 #: Largest number of frame elements per link (the model's own cap, :data:`kedfem.model.mechanism.MAX_ELEMENTS`).
 MAX_ELEMENTS = _MODEL_MAX_ELEMENTS
