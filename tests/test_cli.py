@@ -71,8 +71,8 @@ def test_default_run_end_to_end(tmp_path):
         nums = row.split()
         # the summary reads mm and MPa, the files SI; printed to the digits their errors allow:
         # the file's value rounded to them
-        for printed, value in ((nums[1], 1e3 * float(p["peak_deflection [m]"])),
-                               (nums[4], 1e-6 * float(p["peak_stress [Pa]"]))):
+        for printed, value in ((nums[1], 1e3 * float(p["peak_deflection_m"])),
+                               (nums[4], 1e-6 * float(p["peak_stress_Pa"]))):
             mant, _, exp = printed.partition("e")
             place = 10.0 ** (int(exp or 0) - (len(mant.split(".")[1]) if "." in mant else 0))
             assert abs(float(printed) - value) <= 0.5 * place * (1 + 1e-9), (printed, value)

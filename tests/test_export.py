@@ -36,7 +36,7 @@ def read_csv(path):
 
 def test_peaks_csv_equals_result_peaks(slider, tmp_path):
     head, rows = read_csv(export.write_peaks_csv(slider, tmp_path / "peaks.csv"))
-    assert head[:4] == ["link", "peak_deflection [m]", "deflection_angle [rad]", "peak_stress [Pa]"]
+    assert head[:4] == ["link", "peak_deflection_m", "deflection_angle_rad", "peak_stress_Pa"]
     peaks = slider.peaks()
     assert [r[0] for r in rows] == [p.link for p in peaks]
     for r, p in zip(rows, peaks):
@@ -49,17 +49,21 @@ def test_peaks_csv_equals_result_peaks(slider, tmp_path):
 
 def test_response_and_frequency_csv_and_npz_round_trip(slider, tmp_path):
     head, rows = read_csv(export.write_response_csv(slider, tmp_path / "r.csv"))
-    assert head[:2] == ["t [s]", "crank_angle [rad]"]
-    assert head[2:] == [f"{d} [{'rad' if d.split('.')[-1].split('@')[0] in ('theta', 'phi') else 'm'}]"
+    assert head[:2] == ["t_s", "crank_angle_rad"]
+    assert head[2:] == [f"{d}_{'rad' if d.split('.')[-1].split('@')[0] in ('theta', 'phi') else 'm'}"
                         for d in slider.dof_labels]
     data = np.array(rows, dtype=float)
     np.testing.assert_array_equal(data[:, 0], slider.t)
     np.testing.assert_array_equal(data[:, 2:], slider.U)
     f = slider.frequencies(3)
     head, rows = read_csv(export.write_frequencies_csv(f, tmp_path / "f.csv"))
-    data = np.array(rows, dtype=float)
-    np.testing.assert_array_equal(data[:, 1:4], f.modal)
-    np.testing.assert_array_equal(data[:, 4:7], f.state_space)
+    assert tuple(head) == export.FREQUENCY_COLUMNS  # tidy: one row per time node and mode
+    data = np.array([r[:5] for r in rows], dtype=float)
+    np.testing.assert_array_equal(data[:, 0], np.repeat(f.crank_angle, 3))
+    np.testing.assert_array_equal(data[:, 1], np.tile([1, 2, 3], f.crank_angle.size))
+    np.testing.assert_array_equal(data[:, 2].reshape(-1, 3), f.modal)
+    np.testing.assert_array_equal(data[:, 3].reshape(-1, 3), f.state_space)
+    assert {r[5] for r in rows} == {"True"}
     z = np.load(export.write_npz(slider, tmp_path / "r.npz", f))
     np.testing.assert_array_equal(z["U"], slider.U)
     np.testing.assert_array_equal(z["floquet_multipliers"], slider.floquet_multipliers)

@@ -26,9 +26,10 @@ def test_histories_csv_at_mid_span_are_n_over_a_minus_plus_m_c_over_i(slider_cra
     x = res.stations(link)
     mid = x[len(x) // 2]
     assert mid == pytest.approx(0.5 * res.model.mech.links[link].length)
-    rows = {}
+    rows, units = {}, set()
     with open(tmp_path / "h.csv", newline="") as f:
         for r in csv.DictReader(f):
+            units.add(r["unit"])
             if r["link"] == link and float(r["station_m"]) == pytest.approx(mid):
                 rows.setdefault(r["quantity"], []).append(float(r["value"]))
     sec = res.model.mech.links[link].section
@@ -40,7 +41,8 @@ def test_histories_csv_at_mid_span_are_n_over_a_minus_plus_m_c_over_i(slider_cra
     N_mid, _M = res.section_forces(link)
     N = N_mid[:, k]
     assert np.abs(N - 0.5 * (Ne[:, k - 1] + Ne[:, k])).max() < 0.05 * np.abs(Ne).max()
-    top, bottom = np.array(rows["stress_top_Pa"]), np.array(rows["stress_bottom_Pa"])
+    assert units == {"Pa", "N", "N m", "m"}  # each row's SI unit in the unit column
+    top, bottom = np.array(rows["stress_top"]), np.array(rows["stress_bottom"])
     scale = np.abs(bottom).max()
     np.testing.assert_allclose(top, N / sec.A - M * sec.c / sec.I, rtol=0, atol=1e-8 * scale)
     np.testing.assert_allclose(bottom, N / sec.A + M * sec.c / sec.I, rtol=0, atol=1e-8 * scale)

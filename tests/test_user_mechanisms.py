@@ -58,7 +58,7 @@ def kedfem_cli(args, cwd):
 
 def _peaks(path):
     with open(path, newline="") as f:
-        return {r["link"]: float(r["peak_stress [Pa]"]) for r in csv.DictReader(f)}
+        return {r["link"]: float(r["peak_stress_Pa"]) for r in csv.DictReader(f)}
 
 
 def test_cli_runs_a_builder_file_and_a_scene_file_names_one_relative_to_itself(folder):

@@ -33,6 +33,12 @@ def _name(branch) -> str:
     return "speed_rad_s" if branch.parameter == "speed" else branch.parameter
 
 
+def _brackets(branch) -> tuple[str, str]:
+    """The bifurcation table's bracket columns: with the parameter's unit as a suffix where it has
+    one (the speed in rad/s); a scene-file parameter's unit is its key's."""
+    return ("bracket_lo_rad_s", "bracket_hi_rad_s") if branch.parameter == "speed" else ("bracket_lo", "bracket_hi")
+
+
 def to_csv(branch, path) -> tuple[Path, Path]:
     """Write the points and the bifurcations of ``branch``.
 
@@ -61,9 +67,8 @@ def to_csv(branch, path) -> tuple[Path, Path]:
     bif = path.with_name(path.stem + "_bifurcations.csv")
     with atomic_path(bif) as tmp, open(tmp, "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(("kind", _name(branch)) + (("speed_rpm",) if speed else ()) + (
-            "bracket_lo", "bracket_hi", "multiplier_re", "multiplier_im", "stable_before", "stable_after",
-            "periods"))
+        w.writerow(("kind", _name(branch)) + (("speed_rpm",) if speed else ()) + _brackets(branch) + (
+            "multiplier_re", "multiplier_im", "stable_before", "stable_after", "periods"))
         for br in _branches(branch):
             for b in br.bifurcations:
                 w.writerow(csv_cells((b.kind, b.value) + ((b.value * RPM_PER_RAD_S,) if speed else ()) + (
@@ -181,9 +186,10 @@ def read(folder) -> "Branch":
             branches.setdefault(periods, []).append(BranchPoint(
                 num(rs[0][value_key]), peaks, errs, np.zeros(0, complex), rho, rs[0]["stable"] == "True", periods))
         found: dict = {}
+        lo_hi = ("bracket_lo_rad_s", "bracket_hi_rad_s") if parameter == "speed" else ("bracket_lo", "bracket_hi")
         for b in bifs:
             found.setdefault(int(b["periods"]), []).append(Bifurcation(
-                b["kind"], num(b[value_key]), (num(b["bracket_lo"]), num(b["bracket_hi"])),
+                b["kind"], num(b[value_key]), tuple(num(b[k]) for k in lo_hi),
                 complex(num(b["multiplier_re"]), num(b["multiplier_im"])), b["stable_before"] == "True",
                 b["stable_after"] == "True"))
     except (KeyError, ValueError, StopIteration) as e:

@@ -36,8 +36,8 @@ __all__ = ["campbell_chart", "write_campbell_csv", "write_crossings_csv", "Stabi
 log = logging.getLogger(__name__)
 
 #: Columns of the crossings table.
-CROSSING_COLUMNS = ("mode", "harmonic", "speed_lo_rad_s", "speed_hi_rad_s", "rpm_lo", "rpm_hi", "rpm_at_mean",
-                    "frequency_lo_Hz", "frequency_hi_Hz", "open_lo", "open_hi")
+CROSSING_COLUMNS = ("mode", "harmonic", "speed_lo_rad_s", "speed_hi_rad_s", "speed_lo_rpm", "speed_hi_rpm",
+                    "speed_at_mean_rpm", "frequency_lo_Hz", "frequency_hi_Hz", "open_lo", "open_hi")
 
 
 def _table(path, names: Sequence[str], rows: Sequence[tuple]) -> Path:

@@ -63,7 +63,7 @@ from ..errors import InputError, KedError, OptionalDependencyError
 from ..motion.crank import crank_angle_convention
 
 __all__ = ["OptionalDependencyError", "require", "atomic_path", "write_response_csv", "write_peaks_csv",
-           "write_frequencies_csv", "write_npz", "Part", "MechanismMesh", "mechanism_mesh", "auto_scale",
+           "write_frequencies_csv", "column", "FREQUENCY_COLUMNS", "write_npz", "Part", "MechanismMesh", "mechanism_mesh", "auto_scale",
            "VtkSeries", "write_vtk_series", "write_mode_shapes", "dof_unit", "PART_KINDS", "SYMBOLS"]
 
 log = logging.getLogger(__name__)
@@ -104,14 +104,20 @@ def atomic_path(path):
         raise
 
 
-#: What a frequency cell of a mode without oscillation (a real eigenvalue pair) reads.
-NON_OSCILLATING = "non-oscillating"
-
-
 def _fmt(x, missing: str = "") -> str:
     """Full-precision cell; ``missing`` for NaN (no NaN is written to a file)."""
     x = float(x)
     return missing if math.isnan(x) else repr(x)
+
+
+def column(name: str, unit: str) -> str:
+    """A table column's name with its SI unit as a suffix (the convention of every CSV kedfem
+    writes, docs/usage.md "Tables"): ``column("peak_stress", "Pa") == "peak_stress_Pa"``; the
+    unit's spaces and powers become underscores (``N m`` -> ``N_m``, ``kg^0.5 m`` -> ``kg0.5_m``);
+    a dimensionless quantity (``unit`` empty) keeps its name."""
+    if not unit:
+        return name
+    return f"{name}_{unit.replace('^', '').replace(' ', '_').replace('/', '_')}"
 
 
 def dof_unit(label: str) -> str:
@@ -129,21 +135,22 @@ def dof_unit(label: str) -> str:
 def write_response_csv(res, path) -> Path:
     """Elastic displacements over the cycle: one row per time node.
 
-    Columns ``t [s]``, ``crank_angle [rad]``, then every DOF label with its
-    unit (``[m]`` or ``[rad]``). Numbers are written with full precision.
+    Columns ``t_s``, ``crank_angle_rad``, then every DOF label with its unit as a suffix
+    (``_m`` or ``_rad``; the table convention of docs/usage.md). Numbers are written with full
+    precision.
     """
     path = Path(path)
     with atomic_path(path) as tmp, open(tmp, "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(["t [s]", "crank_angle [rad]"] + [f"{d} [{dof_unit(d)}]" for d in res.dof_labels])
+        w.writerow(["t_s", "crank_angle_rad"] + [column(d, dof_unit(d)) for d in res.dof_labels])
         for k in range(res.n):
             w.writerow([_fmt(res.t[k]), _fmt(res.crank_angle[k])] + [_fmt(x) for x in res.U[k]])
     return path
 
 
-PEAK_COLUMNS = ("link", "peak_deflection [m]", "deflection_angle [rad]", "peak_stress [Pa]",
-                "stress_angle [rad]", "stress_station [m]", "deflection_time_error [-]",
-                "stress_time_error [-]", "deflection_mesh_error [-]", "stress_mesh_error [-]")
+PEAK_COLUMNS = ("link", "peak_deflection_m", "deflection_angle_rad", "peak_stress_Pa",
+                "stress_angle_rad", "stress_station_m", "deflection_time_error",
+                "stress_time_error", "deflection_mesh_error", "stress_mesh_error")
 
 
 def write_peaks_csv(res, path, peaks=None, mesh=None) -> Path:
@@ -172,25 +179,28 @@ def write_peaks_csv(res, path, peaks=None, mesh=None) -> Path:
     return path
 
 
-def write_frequencies_csv(freqs, path) -> Path:
-    """Natural frequencies over the cycle (:class:`~kedfem.analysis.results.Frequencies`).
+FREQUENCY_COLUMNS = ("crank_angle_rad", "mode", "modal_Hz", "state_space_Hz", "damping_ratio", "oscillating")
 
-    Columns ``crank_angle [rad]``, ``modal_k [Hz]``, ``state_space_k [Hz]``,
-    ``damping_ratio_k [-]`` for modes ``k = 1..``; where fewer than ``k``
-    state-space eigenvalues oscillate (overdamped modes), the state-space and
-    damping cells read ``non-oscillating``.
+
+def write_frequencies_csv(freqs, path) -> Path:
+    """Natural frequencies over the cycle (:class:`~kedfem.analysis.results.Frequencies`), tidy:
+    one row per time node and mode.
+
+    Columns :data:`FREQUENCY_COLUMNS`: ``crank_angle_rad``, ``mode`` (1..), ``modal_Hz``,
+    ``state_space_Hz``, ``damping_ratio``, ``oscillating``. Where fewer than ``mode`` state-space
+    eigenvalues oscillate (an overdamped mode), ``oscillating`` is ``False`` and the state-space
+    frequency and damping cells are empty (no NaN is written).
     """
     path = Path(path)
     k = freqs.modal.shape[1]
     with atomic_path(path) as tmp, open(tmp, "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(["crank_angle [rad]"] + [f"modal_{j + 1} [Hz]" for j in range(k)]
-                   + [f"state_space_{j + 1} [Hz]" for j in range(k)]
-                   + [f"damping_ratio_{j + 1} [-]" for j in range(k)])
+        w.writerow(FREQUENCY_COLUMNS)
         for i in range(freqs.crank_angle.size):
-            w.writerow([_fmt(freqs.crank_angle[i])] + [_fmt(x) for x in freqs.modal[i]]
-                       + [_fmt(x, NON_OSCILLATING) for x in freqs.state_space[i]]
-                       + [_fmt(x, NON_OSCILLATING) for x in freqs.damping_ratio[i]])
+            for j in range(k):
+                fs, zr = freqs.state_space[i, j], freqs.damping_ratio[i, j]
+                w.writerow([_fmt(freqs.crank_angle[i]), j + 1, _fmt(freqs.modal[i, j]), _fmt(fs), _fmt(zr),
+                            not (math.isnan(float(fs)) or math.isnan(float(zr)))])
     return path
 
 

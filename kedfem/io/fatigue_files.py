@@ -3,10 +3,12 @@
 ``fatigue.csv``: one row per link, station and fibre (``link, station_m, fibre, mean_Pa,
 alternating_Pa, max_Pa, min_Pa``; a station at a joint the link passes through, ``through=``,
 appears twice: the pin's ``a`` side, then its ``b`` side). ``histories.csv``: tidy, one row per crank angle, link,
-station and quantity (``crank_angle_deg, link, station_m, quantity, value``) with the
-quantities ``stress_top_Pa``, ``stress_bottom_Pa``, ``axial_force_N``, ``bending_moment_Nm``
-and ``deflection_m`` (transverse, in the link's frame). ``histories.npz``: the same as arrays,
-``<link>/<quantity>`` (n, n_st) plus ``crank_angle_rad`` and ``<link>/stations_m``.
+station and quantity (``crank_angle_deg, link, station_m, quantity, value, unit``) with the
+quantities ``stress_top``, ``stress_bottom`` [Pa], ``axial_force`` [N], ``bending_moment`` [N m]
+and ``deflection`` [m] (transverse, in the link's frame), each row's unit in ``unit`` (the
+table convention of docs/usage.md). ``histories.npz``: the same as arrays,
+``<link>/<quantity>_<unit>`` (n, n_st; :data:`QUANTITIES`) plus ``crank_angle_rad`` and
+``<link>/stations_m``.
 Every file is written whole or not at all (:func:`kedfem.io.export.atomic_path`).
 """
 
@@ -22,7 +24,11 @@ from .export import atomic_path
 
 __all__ = ["write_fatigue_csv", "write_histories"]
 
+#: the arrays of ``histories.npz`` (the name and unit of each)
 QUANTITIES = ("stress_top_Pa", "stress_bottom_Pa", "axial_force_N", "bending_moment_Nm", "deflection_m")
+#: ``(quantity, unit)`` of each of :data:`QUANTITIES` in ``histories.csv``
+CSV_QUANTITIES = (("stress_top", "Pa"), ("stress_bottom", "Pa"), ("axial_force", "N"), ("bending_moment", "N m"),
+                  ("deflection", "m"))
 
 
 def write_fatigue_csv(table: FatigueTable, path) -> Path:
@@ -80,13 +86,13 @@ def write_histories(res, csv_path, npz_path=None, per_element: int = 1) -> list[
     files = []
     if csv_path is not None:
         deg = np.degrees(res.crank_angle) % 360.0
-        rows = ["crank_angle_deg,link,station_m,quantity,value"]
+        rows = ["crank_angle_deg,link,station_m,quantity,value,unit"]
         for link, d in data.items():
-            for q in QUANTITIES:
+            for q, (name, unit) in zip(QUANTITIES, CSV_QUANTITIES):
                 X = d[q]
                 for k in range(res.n):  # rows of text: one per instant
                     a = f"{deg[k]:.6f},{link},"
-                    rows.extend(f"{a}{x:.9g},{q},{v:.9e}" for x, v in zip(d["stations_m"], X[k]))
+                    rows.extend(f"{a}{x:.9g},{name},{v:.9e},{unit}" for x, v in zip(d["stations_m"], X[k]))
         path = Path(csv_path)
         with atomic_path(path) as tmp:
             tmp.write_text("\n".join(rows) + "\n")
