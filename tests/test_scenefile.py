@@ -109,12 +109,15 @@ def test_the_parser_names_no_mechanism():
     import ast
 
     from kedfem import catalogue
-    tree = ast.parse(Path(sf.__file__).read_text())
-    docs = {id(n.body[0].value) for n in ast.walk(tree)
-            if isinstance(n, (ast.Module, ast.FunctionDef, ast.ClassDef)) and ast.get_docstring(n) is not None}
-    code = [n.value for n in ast.walk(tree) if isinstance(n, ast.Constant) and isinstance(n.value, str)
-            and id(n) not in docs]
-    code += [n.id for n in ast.walk(tree) if isinstance(n, ast.Name)]
+    from kedfem.io import scene_values
+    code = []
+    for module in (sf, scene_values):  # the parser and its checked values
+        tree = ast.parse(Path(module.__file__).read_text())
+        docs = {id(n.body[0].value) for n in ast.walk(tree)
+                if isinstance(n, (ast.Module, ast.FunctionDef, ast.ClassDef)) and ast.get_docstring(n) is not None}
+        code += [n.value for n in ast.walk(tree) if isinstance(n, ast.Constant) and isinstance(n.value, str)
+                 and id(n) not in docs]
+        code += [n.id for n in ast.walk(tree) if isinstance(n, ast.Name)]
     words = set(catalogue.available()) | {"mould", "crank_angle", "o6", "leaf_height", "casting_speed"}
     for text in code:
         for word in words:
