@@ -11,10 +11,12 @@ transport terms ``E^T (C E + 2 M E')``, ``E^T (K E + C E' + M E'')`` and
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from ..motion.kinematics import Motion
+from .forms import EntityForm
 from .slots import slot_point_form, slot_rotation_form, support_entities
 
 __all__ = ["ConstraintMaps", "GroupMap"]
@@ -55,11 +57,68 @@ class GroupMap:
         return x
 
 
+class NodeForms(NamedTuple):
+    """Forms of an interior node of a Craig-Bampton block: its translation and its rotation."""
+
+    point: EntityForm
+    rotation: EntityForm
+
+
+class DynamicSlot(NamedTuple):
+    """An entity slot of a group's element whose map varies in time or carries an offset.
+
+    :meth:`ConstraintMaps.group_map` adds the entity's :class:`EntityForm` into the element's
+    rows ``row:row + width`` at its columns ``positions``.
+
+    Attributes
+    ----------
+    element : int
+        Element index in the group (or bucket, see :meth:`ConstraintMaps.buckets`).
+    row : int
+        First row of the slot among the element's DOFs.
+    positions : ndarray of int, shape (k,)
+        Element column of each of the entity's q columns, in the order of its ``cols``.
+    kind : str
+        ``"P"`` (translation point) or ``"R"`` (rotation).
+    eid : int
+        Entity id.
+    width : int
+        2 for a point, 1 for a rotation.
+    moving : bool
+        The entity's map varies in time (else only its offset is added).
+    """
+
+    element: int
+    row: int
+    positions: np.ndarray
+    kind: str
+    eid: int
+    width: int
+    moving: bool
+
+
+class PassiveEnd(NamedTuple):
+    """End ``b`` of a passive link's last beam element, where the chord stretch is prescribed.
+
+    Attributes
+    ----------
+    element : int
+        Element index in the group (or bucket).
+    row : int
+        First row of the end's translation among the element's DOFs.
+    link : str
+        The passive link (:meth:`ConstraintMaps.chord_stretch`).
+    """
+
+    element: int
+    row: int
+    link: str
+
 
 class ConstraintMaps:
     """The constraint-map part of :class:`kedfem.fe.model.FEModel`: entity forms and group maps."""
 
-    # Every entity has an affine *form* over the time nodes:
+    # Every entity has an affine *form* (EntityForm) over the time nodes:
     #   x_entity(t) = C(t) q[cols] + p(t),  with C (nt|1, width, k) and p (nt, width)
     # plus the first and second time derivatives of C and p (None when constant).
 
@@ -145,16 +204,16 @@ class ConstraintMaps:
         return (any(rd.offset for rd in self.rots)
                 or any(not lk.kinematic for lk in self.mech.flexible_links))
 
-    def entity_forms(self, motion: Motion) -> dict:
+    def entity_forms(self, motion: Motion) -> dict[str, list[EntityForm]]:
         """Affine forms of all entities over the motion's time nodes.
 
         Returns
         -------
         dict
-            ``{"P": [...], "R": [...]}``, each item ``(cols, C, C1, C2, p, p1, p2)``
-            with ``C`` (nt or 1, width, k) and its time derivatives (None if
-            constant), and the prescribed offset ``p`` (nt, width) with its
-            derivatives (None if there is none).
+            ``{"P": [...], "R": [...]}``: the :class:`~kedfem.fe.forms.EntityForm` of every
+            point and rotation, by entity id: ``cols``, ``C`` (nt or 1, width, k) and its
+            time derivatives ``C1, C2`` (None if constant), and the prescribed offset ``p``
+            (nt, width) with its derivatives ``p1, p2`` (None if there is none).
         """
         nt = motion.n
         rp, rp1, rp2 = self.rot_offsets(motion) if any(rd.offset for rd in self.rots) else (None,) * 3
@@ -168,22 +227,24 @@ class ConstraintMaps:
                 locs[pid] = self.loc_motion(self.points[pid].loc, motion)
             return locs[pid]
 
+        def constant(cols, C):  # a map fixed over the cycle, no offset
+            return EntityForm(cols, C, None, None, None, None, None)
+
         def rform(rid):
             if rforms[rid] is not None:
                 return rforms[rid]
             rd = self.rots[rid]
             if rd.kind == "cb":
-                out = block(rd.block)[rd.node][1]
+                out = block(rd.block)[rd.node].rotation
             elif rd.kind == "slot":
                 out = slot_rotation_form(self, rid, motion, pform, rform)
             else:
-                k = len(rd.cols)
-                C = np.ones((1, 1, k))
+                C = np.ones((1, 1, len(rd.cols)))
                 if rd.offset:
-                    p = (rp[:, rid:rid + 1], rp1[:, rid:rid + 1], rp2[:, rid:rid + 1])
+                    out = EntityForm(rd.cols, C, None, None,
+                                     rp[:, rid:rid + 1], rp1[:, rid:rid + 1], rp2[:, rid:rid + 1])
                 else:
-                    p = (None, None, None)
-                out = (rd.cols, C, None, None) + p
+                    out = constant(rd.cols, C)
             rforms[rid] = out
             return out
 
@@ -191,15 +252,14 @@ class ConstraintMaps:
             if pforms[pid] is not None:
                 return pforms[pid]
             pd = self.points[pid]
-            none3 = (None, None, None)
             if pd.kind == "fixed":
-                out = ((), np.zeros((1, 2, 0)), None, None) + none3
+                out = constant((), np.zeros((1, 2, 0)))
             elif pd.kind == "free":
-                out = (pd.cols, np.eye(2)[None], None, None) + none3
+                out = constant(pd.cols, np.eye(2)[None])
             elif pd.kind == "slider":
-                out = (pd.cols, np.asarray(pd.axis, float).reshape(1, 2, 1), None, None) + none3
+                out = constant(pd.cols, np.asarray(pd.axis, float).reshape(1, 2, 1))
             elif pd.kind == "cb":
-                out = block(pd.block)[pd.node][0]
+                out = block(pd.block)[pd.node].point
             elif pd.kind in ("slot", "contact"):
                 out = slot_point_form(self, pid, motion, pform, rform)
             elif pd.kind == "corot":  # components in the link's rotating frame: x = R(theta) q
@@ -208,13 +268,14 @@ class ConstraintMaps:
                 c, s_ = np.cos(th), np.sin(th)
                 R = np.stack([np.stack([c, -s_], -1), np.stack([s_, c], -1)], -2)
                 RS = R @ _S
-                out = (pd.cols, R, w[:, None, None] * RS,
-                       al[:, None, None] * RS - (w**2)[:, None, None] * R) + none3
+                out = EntityForm(pd.cols, R, w[:, None, None] * RS,
+                                 al[:, None, None] * RS - (w**2)[:, None, None] * R, None, None, None)
             else:
-                pc, pC, pC1, pC2, pp, pp1, pp2 = pform(pd.parent)
+                parent = pform(pd.parent)
                 if pd.phi < 0:
-                    out = (pc, pC, pC1, pC2, pp, pp1, pp2)
+                    out = parent
                 else:
+                    pc, pC, pC1, pC2 = parent.cols, parent.C, parent.C1, parent.C2
                     r, v, a = loc_state(pid)
                     rr, rv, ra = loc_state(pd.parent) if self.points[pd.parent].loc else (0, 0, 0)
                     rho, rho1, rho2 = r - rr, v - rv, a - ra
@@ -226,8 +287,8 @@ class ConstraintMaps:
                     bC1 = z if pC1 is None else np.broadcast_to(pC1, z.shape)
                     bC2 = z if pC2 is None else np.broadcast_to(pC2, z.shape)
                     cols = tuple(pc) + tuple(self.rots[pd.phi].cols)
-                    out = (cols, np.concatenate([bC, col], -1), np.concatenate([bC1, col1], -1),
-                           np.concatenate([bC2, col2], -1), pp, pp1, pp2)
+                    out = EntityForm(cols, np.concatenate([bC, col], -1), np.concatenate([bC1, col1], -1),
+                                     np.concatenate([bC2, col2], -1), parent.p, parent.p1, parent.p2)
             pforms[pid] = out
             return out
 
@@ -242,8 +303,8 @@ class ConstraintMaps:
             rform(rid)
         return {"P": pforms, "R": rforms}
 
-    def _block_forms(self, b, motion, pform, rform):
-        """Forms of the interior nodes of a Craig-Bampton block (see kedfem.fe.reduction).
+    def _block_forms(self, b, motion, pform, rform) -> list[NodeForms]:
+        """Forms of the interior nodes of a Craig-Bampton block (see kedfem.fe.reduction), node by node.
 
         Interior (global) ``x_i = W x_b + Z eta`` with ``W = T_i^T Psi T_b``,
         ``Z = T_i^T Phi`` and ``T' = -w S_hat T``:
@@ -258,12 +319,12 @@ class ConstraintMaps:
         # boundary map x_b = E_b q_b + p_b (nt, 6, m_b) and offsets (nt, 6)
         forms = [pform(blk["bounds"][0]), rform(blk["bounds"][1]), pform(blk["bounds"][2]),
                  rform(blk["bounds"][3])]
-        mb = sum(len(f[0]) for f in forms)
+        mb = sum(len(f.cols) for f in forms)
         Eb = np.zeros((3, nt, 6, mb))  # value, first, second derivative
         pb = np.zeros((3, nt, 6))
         row = col = 0
         for f in forms:
-            cols, C, C1, C2, p, p1, p2 = f
+            _cols, C, C1, C2, p, p1, p2 = f
             w, k = C.shape[1], C.shape[2]
             for d, X in enumerate((C, C1, C2)):
                 if X is not None:
@@ -327,9 +388,11 @@ class ConstraintMaps:
         for j in range(ni // 3):
             r = slice(3 * j, 3 * j + 2)
             t = slice(3 * j + 2, 3 * j + 3)
-            pt = (cols, E0[:, r], E1[:, r], E2[:, r]) + ((P0[:, r], P1[:, r], P2[:, r]) if has_p else (None,) * 3)
-            ro = (cols, E0[:, t], E1[:, t], E2[:, t]) + ((P0[:, t], P1[:, t], P2[:, t]) if has_p else (None,) * 3)
-            out.append((pt, ro))
+            pt = EntityForm(cols, E0[:, r], E1[:, r], E2[:, r],
+                            *((P0[:, r], P1[:, r], P2[:, r]) if has_p else (None,) * 3))
+            ro = EntityForm(cols, E0[:, t], E1[:, t], E2[:, t],
+                            *((P0[:, t], P1[:, t], P2[:, t]) if has_p else (None,) * 3))
+            out.append(NodeForms(pt, ro))
         return out
 
     def rot_offsets(self, motion: Motion):
@@ -354,7 +417,8 @@ class ConstraintMaps:
         return p, p1, p2
 
     def _static_layout(self, gname: str):
-        """Column map, constant part of E and the dynamic slots of a group.
+        """Column map (n_el, m), constant part of E (n_el, d, m), the :class:`DynamicSlot` and
+        the :class:`PassiveEnd` items of a group.
 
         The q columns of an element are the union of its entities' columns
         (each global column once), so that element matrices in q-space stay as
@@ -380,8 +444,8 @@ class ConstraintMaps:
         m = max(m, 1)
         colarr = np.full((n_el, m), len(self.dof_labels), dtype=int)
         E0 = np.zeros((n_el, g.d, m))
-        dynamic = []  # (element, row, positions, kind, entity id, width, moving)
-        passive = []  # (element, row, passive link name): chord stretch at end b
+        dynamic: list[DynamicSlot] = []
+        passive: list[PassiveEnd] = []  # chord stretch at end b
         passive_end = {}
         if base == "beam":
             local = {int(e): i for i, e in enumerate(elements)}
@@ -401,13 +465,13 @@ class ConstraintMaps:
                     pos = np.array([index[c] for c in self.entity_cols(kind, eid)], dtype=int)
                     moving, offset = self.entity_dynamic(kind, eid)
                     if moving or offset:
-                        dynamic.append((e, row, pos, kind, eid, width, moving))
+                        dynamic.append(DynamicSlot(e, row, pos, kind, eid, width, moving))
                     if not moving and pos.size:
                         C = self._const_C(kind, eid)
                         for j, pj in enumerate(pos):
                             E0[e, row:row + width, pj] += C[:, j]
                 if kind == "P" and slot == 2 and e in passive_end:
-                    passive.append((e, row, passive_end[e]))
+                    passive.append(PassiveEnd(e, row, passive_end[e]))
                 row += width
         out = (colarr, E0, dynamic, passive)
         self._static_cache[gname] = out
@@ -472,7 +536,7 @@ class ConstraintMaps:
         p2 = l2[:, None] * e1 + 2 * l1[:, None] * w * e2 + ext * (al * e2 - w**2 * e1)
         return p, p1, p2
 
-    def group_map(self, gname: str, motion: Motion, forms=None) -> GroupMap:
+    def group_map(self, gname: str, motion: Motion, forms: dict[str, list[EntityForm]] | None = None) -> GroupMap:
         """Constraint map of a group over the motion's time nodes.
 
         ``forms`` (from :meth:`entity_forms` on the same motion) may be passed
@@ -483,7 +547,7 @@ class ConstraintMaps:
         n_el, d, m = E0.shape
         if (dynamic or passive) and forms is None:
             forms = self.entity_forms(motion)
-        moving = any(dyn[6] for dyn in dynamic)
+        moving = any(dyn.moving for dyn in dynamic)
         if moving:
             E = np.broadcast_to(E0, (nt, n_el, d, m)).copy()
             E1 = np.zeros_like(E)
@@ -492,7 +556,7 @@ class ConstraintMaps:
             E = E0[None]
             E1 = E2 = None
         p = p1 = p2 = None
-        if any(forms[kind][eid][4] is not None for (_e, _r, _p, kind, eid, _w, _mv) in dynamic) or passive:
+        if any(forms[dyn.kind][dyn.eid].p is not None for dyn in dynamic) or passive:
             p = np.zeros((nt, n_el, d))
             p1 = np.zeros_like(p)
             p2 = np.zeros_like(p)

@@ -29,6 +29,7 @@ import numpy as np
 from ..errors import InputError
 from ..model.elements import hermite
 from ..motion.kinematics import slot_direction
+from .forms import EntityForm
 
 __all__ = ["slot_point_form", "slot_rotation_form", "block_abscissa", "element_at", "node_crossings"]
 
@@ -172,7 +173,7 @@ class _Sum:
         """Add ``d (w proj^T x)`` (a point entity) or ``d (w x)`` (a rotation, ``proj`` None).
 
         ``d``, ``proj``: directions with their time derivatives, each (nt, dim) / (nt, 2);
-        ``w``: scalar weights (w, w', w''), each (nt,); ``form``: the entity's affine form.
+        ``w``: scalar weights (w, w', w''), each (nt,); ``form``: the entity's :class:`EntityForm`.
         """
         cols, C, C1, C2, p, p1, p2 = form
         nt = self.nt
@@ -197,8 +198,8 @@ class _Sum:
         """The block's own DOF along ``d``."""
         self.parts.append((self._positions(cols), d[0][..., None], d[1][..., None], d[2][..., None]))
 
-    def form(self, order):
-        """The affine form ``(cols, C, C1, C2, p, p1, p2)`` with the columns in ``order``."""
+    def form(self, order) -> EntityForm:
+        """The affine form with the columns in ``order``."""
         cols = list(order)
         where = np.array([cols.index(c) for c in self.cols], dtype=int)  # own column -> final column
         C = np.zeros((3, self.nt, self.dim, len(cols)))
@@ -207,7 +208,7 @@ class _Sum:
             for o in range(3):
                 C[o][..., at] += Ms[o]
         p = (None, None, None) if self.p is None else self.p
-        return (tuple(cols), C[0], C[1], C[2]) + tuple(p)
+        return EntityForm(tuple(cols), C[0], C[1], C[2], *p)
 
 
 def _product(f, g, spec):
@@ -257,11 +258,12 @@ def _beam_terms(fe, joint, motion, pform, rform, acc: _Sum, u, xi, what: str):
             acc.add(u, tuple(wa[:, :, j]), pform(pts[j]), proj=u)
 
 
-def slot_point_form(fe, pid: int, motion, pform, rform):
-    """Affine form ``(cols, C, C1, C2, p, p1, p2)`` of a slot joint's translation (see module docstring),
+def slot_point_form(fe, pid: int, motion, pform, rform) -> EntityForm:
+    """Affine form (:class:`EntityForm`) of a slot joint's translation (see module docstring),
     or (kind ``"contact"``) of the member's point under the block.
 
     ``C`` (nt, 2, k) and its first and second time derivatives; ``p`` (nt, 2) or None.
+    ``pform``, ``rform``: point and rotation id -> :class:`EntityForm` of the entities drawn on.
     """
     pd = fe.points[pid]
     joint = pd.loc[1]
@@ -307,7 +309,7 @@ def _spline_slope(fe, joint, motion, rform, acc: _Sum, xi):
                 tuple(v[:, j] for v in w), rform(rots[j]))
 
 
-def slot_rotation_form(fe, rid: int, motion, pform, rform):
+def slot_rotation_form(fe, rid: int, motion, pform, rform) -> EntityForm:
     """Affine form of the elastic rotation of a member locked to a slot: the slope under the block
     (a sliding block: the spline slope of :func:`_spline_slope`; a block locked at its abscissa:
     the element's own slope there, as if the link were split and welded to the member)."""
