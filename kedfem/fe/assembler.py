@@ -611,13 +611,13 @@ class Assembler:
         elements); scattered per bucket, the elements away from a block keep their narrow width."""
         cache = self.__dict__.setdefault("_parts_cache", {})
         if (gname, width) not in cache:
-            full = self.model._static_layout(gname)[0]
+            full = self.model._static_layout(gname).cols
             parts = [(gname, slice(None), width)]
             buckets = self.model.buckets(gname)
             if len(buckets) > 1 and full.shape[1] == width:
                 cand = []
                 for key, els in buckets.items():
-                    cols = self.model._static_layout(key)[0]
+                    cols = self.model._static_layout(key).cols
                     m = cols.shape[1]
                     beyond = full[els, m:]
                     if not (np.array_equal(full[els, :m], cols) and (beyond >= self.model.n_dof).all()):

@@ -115,6 +115,27 @@ class PassiveEnd(NamedTuple):
     link: str
 
 
+class StaticLayout(NamedTuple):
+    """What of a group's maps does not move with the mechanism (:meth:`ConstraintMaps._static_layout`).
+
+    Attributes
+    ----------
+    cols : ndarray of int, shape (n_el, m)
+        Each element's q columns (unused trailing ones hold ``n_dof``).
+    E0 : ndarray, shape (n_el, d, m)
+        The constant part of the elements' maps ``x = E q + p``.
+    dynamic : list of DynamicSlot
+        The entity slots whose map moves or carries an offset.
+    passive : list of PassiveEnd
+        The passive links' last-element ends (the chord stretch).
+    """
+
+    cols: np.ndarray
+    E0: np.ndarray
+    dynamic: list
+    passive: list
+
+
 class ConstraintMaps:
     """The constraint-map part of :class:`kedfem.fe.model.FEModel`: entity forms and group maps."""
 
@@ -416,9 +437,9 @@ class ConstraintMaps:
             p[:, rid], p1[:, rid], p2[:, rid] = val, d1, d2
         return p, p1, p2
 
-    def _static_layout(self, gname: str):
-        """Column map (n_el, m), constant part of E (n_el, d, m), the :class:`DynamicSlot` and
-        the :class:`PassiveEnd` items of a group.
+    def _static_layout(self, gname: str) -> StaticLayout:
+        """The group's :class:`StaticLayout`: its column map (n_el, m), the constant part of E
+        (n_el, d, m), its :class:`DynamicSlot` and :class:`PassiveEnd` items.
 
         The q columns of an element are the union of its entities' columns
         (each global column once), so that element matrices in q-space stay as
@@ -473,7 +494,7 @@ class ConstraintMaps:
                 if kind == "P" and slot == 2 and e in passive_end:
                     passive.append(PassiveEnd(e, row, passive_end[e]))
                 row += width
-        out = (colarr, E0, dynamic, passive)
+        out = StaticLayout(colarr, E0, dynamic, passive)
         self._static_cache[gname] = out
         return out
 

@@ -71,7 +71,7 @@ class Scatter:
         """
         if gname in self._scatter_cache:
             return self._scatter_cache[gname]
-        colarr = self._static_layout(gname)[0]
+        colarr = self._static_layout(gname).cols
         N = self.n_dof
         mat = _matrix_plan(colarr, N)
         vec = _plan(colarr.reshape(-1), colarr.reshape(-1) < N)
@@ -82,14 +82,14 @@ class Scatter:
         """Segment sums of a group's element matrices restricted to element columns ``cols``."""
         key = (gname, cols.tobytes())
         if key not in self._scatter_cache:
-            self._scatter_cache[key] = _matrix_plan(self._static_layout(gname)[0][:, cols], self.n_dof)
+            self._scatter_cache[key] = _matrix_plan(self._static_layout(gname).cols[:, cols], self.n_dof)
         return self._scatter_cache[key]
 
     def _sub_vector_operator(self, gname: str, cols: np.ndarray):
         """Segment sums of a group's element vectors restricted to element columns ``cols``."""
         key = (gname, cols.tobytes(), "vector")
         if key not in self._scatter_cache:
-            c = self._static_layout(gname)[0][:, cols].reshape(-1)
+            c = self._static_layout(gname).cols[:, cols].reshape(-1)
             self._scatter_cache[key] = _plan(c, c < self.n_dof)
         return self._scatter_cache[key]
 
@@ -163,7 +163,7 @@ class Scatter:
 
     def scatter_sparse(self, gname: str, data: np.ndarray) -> sp.csr_matrix:
         """Scatter element matrices of one time node ``(n_el, m, m)`` to CSR ``(N, N)``."""
-        colarr = self._static_layout(gname)[0]
+        colarr = self._static_layout(gname).cols
         n_el, m = colarr.shape
         r = np.repeat(colarr, m, axis=1).reshape(-1)
         c = np.tile(colarr, (1, m)).reshape(-1)
