@@ -86,7 +86,7 @@ def generalised_eigh(M: np.ndarray, K: np.ndarray, name: str = "", labels=None, 
     lam, Li, V = (x.reshape((-1,) + x.shape[len(shape) - 2:]) for x in (lam, Li, V))
     L, K = L.reshape((-1,) + shape[-2:]), K.reshape((-1,) + shape[-2:])
     if parallel:
-        from .periodic import _run_parallel, _split, default_workers
+        from .parallel import _run_parallel, _split, default_workers
         _run_parallel(work, _split(L.shape[0], default_workers(), min_part=4))
     else:
         work(0, 0, L.shape[0])
