@@ -163,7 +163,7 @@ def periodic_flops(n: int, N: int, hold: str = "zoh", *, products: int, squaring
     nodes = n + (0 if hold == "zoh" else 1)  # magnus2 / foh need node k + 1 too
     sq = np.broadcast_to(np.asarray(squarings, dtype=float), (n,))
     ph = {}
-    # M^-1 K, M^-1 C, M^-1 Q (kedfem.solvers.periodic._state_parts) and the mass check
+    # M^-1 K, M^-1 C, M^-1 Q (kedfem.solvers.state_space._state_parts) and the mass check
     if mass == "constant":
         st = N ** 3 / 3.0 + 2.0 / 3.0 * N ** 3 + 2.0 * N ** 2 * N * nodes + 2.0 * N ** 2 * nodes
         st += (2.0 * N ** 3) if damping == "constant" else 2.0 * N ** 3 * nodes

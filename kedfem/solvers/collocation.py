@@ -16,7 +16,7 @@ is one linear system of size ``s N`` per element (no inverse of ``M``):
 ``u_{k+1} = u_k + h v_k + h^2 (b A) a``, ``v_{k+1} = v_k + h b a``, so each
 element is an affine map ``z_{k+1} = P_k z_k + p_k`` that goes through the
 same block-cyclic condensation as the exponential holds
-(:func:`kedfem.solvers.periodic.solve_cyclic`): Floquet multipliers, instability
+(:func:`kedfem.solvers.cyclic.solve_cyclic`): Floquet multipliers, instability
 fallback and streaming are shared.
 
 Schemes (``s`` stages; order at the element ends / stage order):

@@ -19,7 +19,7 @@ from .tableaux import Tableau
 
 
 class _Elements:
-    """Transition source of :func:`kedfem.solvers.periodic.solve_cyclic` for a collocation scheme.
+    """Transition source of :func:`kedfem.solvers.cyclic.solve_cyclic` for a collocation scheme.
 
     Data are given at the collocation instants, flattened element by element
     (instant ``k s + j`` is stage ``j`` of element ``k``).

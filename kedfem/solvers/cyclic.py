@@ -99,7 +99,7 @@ def solve_cyclic(elems, per_element: float, *, method: str = "auto", memory_budg
     """Periodic states of ``z_{k+1} = A_k z_k + b_k``, ``z_n = z_0``, and its Floquet analysis.
 
     The block-cyclic system of any one-step time discretisation (the
-    exponential holds of this module, the collocation schemes of
+    exponential holds of :mod:`kedfem.solvers.periodic`, the collocation schemes of
     :mod:`kedfem.solvers.collocation`): condensation (paper Eq. 13-16) or, when a
     multiplier lies outside the unit circle or ``I - Phi`` is non-normal and
     ill-conditioned, a sparse LU of the whole cyclic system.
