@@ -1,6 +1,9 @@
 """The analysis wing: scenes, the solve pipeline and what is read from a result.
 
-`scene` (a validated scene), `pipeline` (`solve`: levels, iteration, estimate), `accuracy`
+`scene` (a validated scene), `pipeline` (`solve`: levels, iteration, estimate; its parts in
+`resolution`, `stability_floor`, `forecast`, `level_estimates`, `homotopy`), `accuracy`
 (error estimates and the stability verdict), `results` and `recovery` (deflections, section
-forces, stresses, peaks), `modal`, `statics`, `mesh_check`, `validation`, `defaults`.
+forces, stresses, peaks; the result's read-outs in `displacements`, `section_forces`,
+`block_forces`, `peak_refinement`, `stations`), `modal`, `statics`, `mesh_check`, `validation`,
+`defaults`.
 """

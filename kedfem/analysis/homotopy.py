@@ -1,0 +1,78 @@
+"""The fallback of a level whose Newton iteration does not converge: its response by continuation in
+speed (:meth:`Homotopy.homotopy`, a part of :class:`kedfem.analysis.pipeline._Run`), and a response
+at another speed read as a start (:func:`phase_sample`)."""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import time
+import warnings
+
+import numpy as np
+
+from ..units import RPM_PER_RAD_S
+
+# the steps of a solve log under the pipeline's name (docs/usage.md: the continuation's warning)
+log = logging.getLogger("kedfem.analysis.pipeline")
+
+
+def phase_sample(discrete, t, period: float):
+    """A discrete solution read at instants ``t`` of a cycle ``period`` long, at the same fractions
+    of its own cycle (velocities rescaled to the new cycle): a response at another speed as a
+    start."""
+    r = discrete.period / period
+    U, V = discrete.at(np.asarray(t, dtype=float) * r)
+    return U, V * r
+
+
+class Homotopy:
+    """The continuation-in-speed fallback of :class:`kedfem.analysis.pipeline._Run` (a mixin: it sets
+    the run's ``path`` and ``highest``, which its failure message reads)."""
+
+    def homotopy(self, prob, failed, eps: float, origin: str = "the linear response"):
+        """The level's response by continuation in speed when Newton from ``origin`` (the linear
+        response, the coarser level, or the given start) does not converge
+        (:func:`kedfem.analysis.branch.reach`).
+
+        Returns the :class:`~kedfem.analysis.problem.Solved` at the scene's speed (the failed
+        one when the continuation does not get there; :attr:`path` says what happened). A
+        warning is logged when it begins: each of its steps is a Newton solve on the level's
+        elements, and tens of them take minutes.
+        """
+        from .branch import Family, reach
+        from ..errors import NonlinearSolveError
+        sc = self.scene
+        w = sc.mech.drives[0].speed
+        log.warning("%s: Newton from %s did not converge at %.4g rpm on %d time elements: continuation in "
+                    "speed (each step a Newton solve on %d elements; tens of steps can take minutes)",
+                    sc.mech.name, origin, abs(w) * RPM_PER_RAD_S, prob.n, prob.n)
+        if self._bar is not None:
+            self._bar.set_postfix_str(f"{prob.n} time elements, continuation in speed", refresh=True)
+        fam = Family(lambda s: dataclasses.replace(sc, speed=s), prob.n, self.scheme)
+        fam.pin(w, prob)  # the target on this level's own elements (a continuation of more speeds than
+        # the family keeps evicted it, and the level came out on uniform elements where it has kinks)
+        t0 = time.perf_counter()
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            given = None
+            if self.start is not None and self.start.sampler is not None:
+                # continue from the given start's own speed, where it is a response
+                w0 = self.start.model.mech.drives[0].speed
+                p0 = fam.problem(w0)
+                given = (w0, fam.pack(*phase_sample(self.start.sampler.discrete, p0.instants, p0.period), w0))
+            try:
+                r = reach(fam, w, eps=eps, unit=(RPM_PER_RAD_S, "rpm"), start=given)
+            except NonlinearSolveError as e:
+                self.path = (f"Newton's method from {origin} did not converge; " + str(e))
+                self.highest = e.highest
+                log.info("%s: %s", sc.mech.name, self.path)  # the NonlinearSolveError says it
+                return failed
+        rpm = RPM_PER_RAD_S
+        folds = (f", through folds at {', '.join(f'{abs(f) * rpm:.1f}' for f in r.folds)} rpm" if r.folds else "")
+        self.path = (f"reached by continuation in speed from {r.start * rpm:.4g} rpm ({r.steps} steps{folds}; "
+                     f"Newton from {origin} did not converge at {abs(w) * rpm:.4g} rpm)")
+        log.info("%s: %s, %d solves, %.1f s", sc.mech.name, self.path, r.solves, time.perf_counter() - t0)
+        d = r.point.discrete
+        from .problem import Solved
+        return Solved(d, True, failed.iterations + r.solves, failed.history, "newton", list(caught))
