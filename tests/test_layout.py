@@ -69,3 +69,10 @@ def test_every_module_is_in_a_wing_or_named_top_level():
     top = {p.stem for p in ROOT.glob("*.py")}
     assert top == {"__init__", "errors", "checks", "catalogue", "trust", "cli", "cli_parser", "units"}, top
     assert {p.name for p in ROOT.iterdir() if p.is_dir() and p.name != "__pycache__"} == set(ALLOWED)
+
+
+def test_no_module_is_a_big_room():
+    """No module in kedfem/ above 800 lines (issue 27: the big rooms were split along their seams)."""
+    sizes = {str(p.relative_to(ROOT.parent)): len(p.read_text().splitlines()) for p in ROOT.rglob("*.py")}
+    big = {k: v for k, v in sizes.items() if v > 800}
+    assert not big, big
