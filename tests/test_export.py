@@ -69,6 +69,7 @@ def test_response_and_frequency_csv_and_npz_round_trip(slider, tmp_path):
     np.testing.assert_array_equal(z["floquet_multipliers"], slider.floquet_multipliers)
     assert tuple(z["dof_labels"]) == slider.dof_labels and bool(z["converged"]) is slider.converged
     np.testing.assert_array_equal(z["state_space"], f.state_space)
+    np.testing.assert_array_equal(z["frequency_crank_angle"], f.crank_angle)  # the frequencies' own grid
     assert str(z["crank_angle_convention"]) == "of the crank 'crank', absolute (its O -> A line from +x, " \
         "counter-clockwise)"  # a driven link's angle, named with the data
 

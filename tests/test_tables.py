@@ -42,7 +42,9 @@ def check_table(path, dof_labels=()):
     df = pd.read_csv(path, comment="#")
     assert len(df) > 0, path.name
     for col in df.columns:
-        assert re.fullmatch(r"[A-Za-z0-9_.@]+", col), f"{path.name}: column {col!r} is not snake_case"
+        # snake_case (a DOF label may name its member: B.u[rocker]_m), no '[unit]' or spaces
+        assert re.fullmatch(r"[A-Za-z0-9_.@]+(\[[A-Za-z0-9_]+\])?[A-Za-z0-9_.@]*", col) and not col.endswith("]"), \
+            f"{path.name}: column {col!r} is not snake_case"
         stem = next((col[: -len(u) - 1] for u in sorted(UNITS, key=len, reverse=True) if col.endswith("_" + u)),
                     None)
         if stem is None:
@@ -112,6 +114,7 @@ def test_the_design_studies_tables(tmp_path):
     assert bands["speed_rpm"].to_numpy() == pytest.approx(np.repeat(camp.rpm, 2))
     cross = check_table(camp.crossings_to_csv(tmp_path / "campbell_crossings.csv"))
     assert cross["speed_lo_rpm"].to_numpy() == pytest.approx([c.rpm_lo for c in camp.crossings])
+    assert cross["speed_at_mean_rad_s"].to_numpy() == pytest.approx([c.speed_mean for c in camp.crossings])
     base = {"mechanism": {"name": "slider_crank", "elements": 3}, "steps": 24,
             "effects": ["inertia", "coupling"], "damping": {"model": "modal", "zeta": 0.02}}
     res = sweep.run_sweep(base, {"speed_rpm": [500.0, 1000.0]}, scheduler="serial", progress=False)

@@ -257,8 +257,9 @@ class CampbellResult:
         return "\n".join([head] + ["  " + c.describe() for c in self.crossings])
 
     def to_csv(self, path) -> Path:
-        """Write the bands: one row per speed and mode (``speed_rad_s``, ``speed_rpm``, ``mode``,
-        ``f_min_Hz``, ``f_mean_Hz``, ``f_max_Hz``); see :func:`kedfem.io.design_plots.write_campbell_csv`."""
+        """Write the bands: one row per speed and mode (``speed_rad_s``, ``speed_rpm``, ``crank_Hz``,
+        ``mode``, ``f_min_Hz``, ``f_mean_Hz``, ``f_max_Hz``); the crossings go to their own table
+        (:meth:`crossings_to_csv`). See :func:`kedfem.io.design_plots.write_campbell_csv`."""
         return hook("campbell_csv")(self, path)
 
     def crossings_to_csv(self, path) -> Path:

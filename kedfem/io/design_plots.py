@@ -36,8 +36,8 @@ __all__ = ["campbell_chart", "write_campbell_csv", "write_crossings_csv", "Stabi
 log = logging.getLogger(__name__)
 
 #: Columns of the crossings table.
-CROSSING_COLUMNS = ("mode", "harmonic", "speed_lo_rad_s", "speed_hi_rad_s", "speed_lo_rpm", "speed_hi_rpm",
-                    "speed_at_mean_rpm", "frequency_lo_Hz", "frequency_hi_Hz", "open_lo", "open_hi")
+CROSSING_COLUMNS = ("mode", "harmonic", "speed_lo_rad_s", "speed_hi_rad_s", "speed_at_mean_rad_s", "speed_lo_rpm",
+                    "speed_hi_rpm", "speed_at_mean_rpm", "frequency_lo_Hz", "frequency_hi_Hz", "open_lo", "open_hi")
 
 
 def _table(path, names: Sequence[str], rows: Sequence[tuple]) -> Path:
@@ -62,7 +62,7 @@ def write_campbell_csv(res, path) -> Path:
 
 def write_crossings_csv(res, path) -> Path:
     """Crossings of a Campbell result, one row each (:data:`CROSSING_COLUMNS`)."""
-    rows = [(c.mode, c.harmonic, c.speed_lo, c.speed_hi, c.rpm_lo, c.rpm_hi, c.rpm_mean, c.frequency_lo,
+    rows = [(c.mode, c.harmonic, c.speed_lo, c.speed_hi, c.speed_mean, c.rpm_lo, c.rpm_hi, c.rpm_mean, c.frequency_lo,
              c.frequency_hi, c.open_lo, c.open_hi) for c in res.crossings]
     return _table(path, CROSSING_COLUMNS, rows)
 

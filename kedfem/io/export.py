@@ -213,7 +213,8 @@ def write_npz(res, path, freqs=None) -> Path:
     ``history``, ``residual``, and with ``freqs`` the ``modal``,
     ``state_space`` and ``damping_ratio`` frequencies with the mask
     ``oscillating`` (False: a mode without oscillation, its two entries 0; no
-    NaN is written).
+    NaN is written) at the crank angles ``frequency_crank_angle`` (the frequencies are
+    evaluated on a subset of the time nodes).
     """
     path = Path(path)
     arrays = dict(t=res.t, crank_angle=res.crank_angle,
@@ -224,7 +225,8 @@ def write_npz(res, path, freqs=None) -> Path:
                   history=np.array(res.history, float), residual=np.float64(res.residual))
     if freqs is not None:
         osc = np.isfinite(freqs.state_space)
-        arrays.update(modal=freqs.modal, state_space=np.where(osc, freqs.state_space, 0.0),
+        arrays.update(frequency_crank_angle=freqs.crank_angle, modal=freqs.modal,
+                      state_space=np.where(osc, freqs.state_space, 0.0),
                       damping_ratio=np.where(osc, freqs.damping_ratio, 0.0), oscillating=osc)
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as f:
