@@ -33,8 +33,18 @@ from .io.branch_files import read as read_branch, write as write_branch
 # the io wing's writers and readers, handed to the analysis wing (which never imports the io wing):
 # res.write, res.summary, a Campbell result's files, critical_speed of a scene dictionary
 from .analysis import hooks as _hooks  # noqa: E402
-from .io import design_plots as _design_plots, report as _report  # noqa: E402
+from .io import design_plots as _design_plots, report as _report, scenefile as _scenefile  # noqa: E402
 
-_hooks.provide(write_result=_report.write_result, format_summary=_report.format_summary,
-               campbell_csv=_design_plots.write_campbell_csv, crossings_csv=_design_plots.write_crossings_csv,
-               campbell_chart=_design_plots.campbell_chart, scene_from_dict=scene_from_dict)
+def _late(module, name):
+    """``module.name`` looked up at each call (a patched or reloaded io function takes effect)."""
+    def call(*args, **kwargs):
+        return getattr(module, name)(*args, **kwargs)
+    call.__name__ = call.__qualname__ = name
+    return call
+
+
+_hooks.provide(write_result=_late(_report, "write_result"), format_summary=_late(_report, "format_summary"),
+               campbell_csv=_late(_design_plots, "write_campbell_csv"),
+               crossings_csv=_late(_design_plots, "write_crossings_csv"),
+               campbell_chart=_late(_design_plots, "campbell_chart"),
+               scene_from_dict=_late(_scenefile, "scene_from_dict"))

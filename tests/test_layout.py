@@ -36,6 +36,12 @@ def _imports():
                 else:
                     for a in node.names:
                         yield me, ".".join(base + [a.name]), id(node) in top
+            elif isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[0] == "kedfem":
+                yield me, node.module, id(node) in top  # an absolute import of kedfem's own
+            elif isinstance(node, ast.Import):
+                for a in node.names:
+                    if a.name.split(".")[0] == "kedfem":
+                        yield me, a.name, id(node) in top
 
 
 def _wing(module):

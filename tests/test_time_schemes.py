@@ -239,17 +239,23 @@ def test_an_estimate_far_inside_rtol_with_converging_histories_is_met_clearly():
     assert asym.asymptotic and not asym.clear
 
 
-def test_peaks_changing_by_read_out_round_off_do_not_hold_back_a_clear_estimate():
-    """Peaks that differ by round-off only (1e-11, growing: no rate) over three levels whose
-    histories converge are met clearly at rtol 1e-5 (the press with a forming load went on from
-    3072 to 12288 elements on a "rate" of noise); peaks that differ by more than READ_NOISE
-    without converging are not."""
-    kw = dict(assumed=3.0, order=4.0, rtol=1e-5)
-    noise = accuracy.estimate(*_levels(2e-12, 1e-4, rate=-1.0, burst_rate=3.0), **kw)
-    assert not noise.asymptotic and noise.clear and noise.met and noise.peak <= 1e-7
-    # peaks whose estimate is far enough inside (rtol 1e-3) but which move by 1e-6 without a rate
-    erratic = accuracy.estimate(*_levels(2e-6, 1e-4, rate=-1.0, burst_rate=3.0), **dict(kw, rtol=1e-3))
-    assert erratic.peak <= accuracy.CLEAR_FRACTION * 1e-3 and not erratic.clear
+def test_peaks_that_do_not_move_do_not_make_an_estimate_clear():
+    """A quasi-static peak exact on every level (its differences 0) beside a ringing that the
+    scheme's numerical damping holds below it on coarse levels (0.65 / 0.85 / 0.95 of the true
+    1.05 on 96 / 192 / 384 elements): its histories converge at rate 1, but the peak about to be
+    overtaken is no converged peak, so the estimate is not 'clear' and the refinement goes on (the
+    true error of the reported peak is 5 %: a stop there would print 0 at rtol 1e-3)."""
+    t = np.arange(64) / 64
+    levels, out = (96, 192, 384), []
+    for n in levels:
+        h = np.exp(-((t - 10 / 64) / 0.05) ** 2) + (1.05 - 0.1 * (384 / n)) * np.exp(-((t - 40 / 64) / 0.05) ** 2)
+        k = int(np.argmax(np.abs(h)))
+        out.append(accuracy.Observables(("rod",), n, np.array([h[k]]), np.array([k]), np.zeros(1),
+                                        np.zeros(1, int), np.zeros(1, int), (h,), (np.zeros((64, 0)),), (False,)))
+    assert [o.deflection[0] for o in out] == [1.0, 1.0, 1.0]  # the ringing is still below the peak
+    for rtol in (1e-2, 1e-3, 1e-5):
+        est = accuracy.estimate(list(levels), out, assumed=3.0, order=4.0, rtol=rtol)
+        assert not est.clear and not est.asymptotic and not est.settled, rtol
 
 
 def test_default_stability_of_the_four_bar_agrees_with_the_split_exponential(four_bar):

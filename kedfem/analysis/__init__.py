@@ -4,6 +4,6 @@
 `resolution`, `stability_floor`, `forecast`, `level_estimates`, `homotopy`), `accuracy`
 (error estimates and the stability verdict), `results` and `recovery` (deflections, section
 forces, stresses, peaks; the result's read-outs in `displacements`, `section_forces`,
-`block_forces`, `peak_refinement`, `stations`), `modal`, `statics`, `mesh_check`, `validation`,
-`defaults`.
+`block_forces`, `peak_refinement`, `peak_search`, `stations`), `hooks` (the io wing's writers,
+handed over without importing it), `modal`, `statics`, `mesh_check`, `validation`, `defaults`.
 """

@@ -187,6 +187,8 @@ def read(folder) -> "Branch":
                 num(rs[0][value_key]), peaks, errs, np.zeros(0, complex), rho, rs[0]["stable"] == "True", periods))
         found: dict = {}
         lo_hi = ("bracket_lo_rad_s", "bracket_hi_rad_s") if parameter == "speed" else ("bracket_lo", "bracket_hi")
+        if bifs and lo_hi[0] not in bifs[0]:  # written before the table convention (issue 27)
+            lo_hi = ("bracket_lo", "bracket_hi")
         for b in bifs:
             found.setdefault(int(b["periods"]), []).append(Bifurcation(
                 b["kind"], num(b[value_key]), tuple(num(b[k]) for k in lo_hi),
