@@ -4,6 +4,7 @@
 columns without one, and in the long tables a ``value`` column whose unit each row names in
 ``unit``."""
 
+import dataclasses
 import math
 import re
 import warnings
@@ -124,6 +125,14 @@ def test_the_design_studies_tables(tmp_path):
                          np.array([500.0, 1000.0]) * kf.units.RAD_S_PER_RPM, "damping.zeta", [0.01, 0.03],
                          scheduler="serial", progress=False)
     check_table(smap.to_csv(tmp_path / "stability_map.csv"))
+    # a failed point's radius and verdict are not computed: empty cells, not 'False'
+    failed = dataclasses.replace(smap, spectral_radius=np.where([[True, False], [False, False]], np.nan,
+                                                                smap.spectral_radius),
+                                 stable=np.where([[True, False], [False, False]], False, smap.stable),
+                                 failures=((float(smap.values[0]), float(smap.speeds[0]), "boom"),))
+    df = pd.read_csv(failed.to_csv(tmp_path / "failed.csv"), dtype={"stable": "boolean", "error": str})
+    assert df["stable"].isna().tolist() == [True, False, False, False] and df["error"].iloc[0] == "boom"
+    assert np.isnan(df["spectral_radius"].iloc[0]) and df["ok"].tolist() == [False, True, True, True]
 
 
 def test_the_branch_tables(tmp_path):

@@ -199,7 +199,7 @@ class StabilityMap:
 
     def to_csv(self, path) -> Path:
         """One row per grid point: the parameter, ``speed_rad_s``, ``speed_rpm``, ``spectral_radius``,
-        ``stable``, ``ok``, ``error``."""
+        ``stable``, ``ok``, ``error`` (a failed point's radius and verdict empty: not computed)."""
         nv, ns = self.spectral_radius.shape
         why = {(v, s): m for v, s, m in self.failures}
         rows = []
@@ -207,7 +207,8 @@ class StabilityMap:
             for j in range(ns):
                 v, s = float(self.values[i]), float(self.speeds[j])
                 msg = why.get((v, s), "")
-                rows.append((v, s, s * RPM_PER_RAD_S, float(self.spectral_radius[i, j]), bool(self.stable[i, j]), not msg, msg))
+                rows.append((v, s, s * RPM_PER_RAD_S, float(self.spectral_radius[i, j]),
+                             "" if msg else bool(self.stable[i, j]), not msg, msg))
         return _table(path, (self.param, "speed_rad_s", "speed_rpm", "spectral_radius", "stable", "ok", "error"),
                       rows)
 

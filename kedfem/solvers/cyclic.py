@@ -25,7 +25,8 @@ from .march import _march
 from .monodromy import (MAX_CONDITION, _balanced_condition, _check_resonance, _choose_method,
                         _floquet_multipliers, _solve_z0)
 
-log = logging.getLogger(__name__)
+# the records keep the logger they had before the split (issue 27): a filter on it still works
+log = logging.getLogger("kedfem.solvers.periodic")
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,8 @@ import numpy as np
 from ..errors import InstabilityWarning, ResonanceError
 from .balancing import balance
 
-log = logging.getLogger(__name__)
+# the records keep the logger they had before the split (issue 27): a filter on it still works
+log = logging.getLogger("kedfem.solvers.periodic")
 
 #: ``I - Phi`` with a condition above ``max_condition`` is a resonance only if a
 #: Floquet multiplier lies within this distance of 1; otherwise the size of the

@@ -22,7 +22,8 @@ from ..checks import real
 from ..errors import InputError
 from .balancing import _inf_norm
 
-log = logging.getLogger(__name__)
+# the records keep the logger they had before the split (issue 27): a filter on it still works
+log = logging.getLogger("kedfem.solvers.expm")
 
 #: Odd Pade degrees the cost-optimal ("auto") choice picks from. An odd degree
 #: ``q`` costs ``(q + 1) // 2`` matrix products, the same as ``q - 1``.
