@@ -40,6 +40,7 @@ from .errors import InputError, KedError
 from . import cli_parser
 from .cli_parser import COMMANDS, EXIT_STRICT
 from .io.outdir import MANIFEST, check_replaceable
+from .units import RAD_S_PER_RPM, RPM_PER_RAD_S
 
 __all__ = ["main", "build_parser"]
 
@@ -494,7 +495,7 @@ def _rpm_values(text: str, name: str):
     _, vals = parse_axis(f"{name}={text}")
     if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in vals):
         raise InputError(f"{name}: speeds must be numbers [rev/min], got {text!r}")
-    return np.asarray(vals, dtype=float) * (2 * math.pi / 60)
+    return np.asarray(vals, dtype=float) * RAD_S_PER_RPM
 
 
 def _publish(out_dir: Path, command: str, source: str, write) -> None:
@@ -533,7 +534,7 @@ def _cmd_campbell(args) -> int:
 def _cmd_critical(args) -> int:
     from .analysis.critical import critical_speed
     ld = _load(args.scene, _overrides(args), args.trust)
-    rpm = 2 * math.pi / 60
+    rpm = RAD_S_PER_RPM
     print(f"kedfem {__version__}: {args.kind} critical speed of {ld.scene.name or ld.scene.mech.name} in "
           f"{args.lo:g} .. {args.hi:g} rpm ...", flush=True)
     with _report_warnings():
@@ -565,12 +566,12 @@ def _cmd_stability_map(args) -> int:
                              trust=ld.trust)
     print(f"  {key:>24s}  first onset [rpm]: between two grid speeds (interpolated in log rho; "
           "kedfem critical refines it)")
-    rpm = 60 / (2 * math.pi)
+    rpm = RPM_PER_RAD_S
     for v, s, lo, hi in zip(smap.values, smap.onsets(), *smap.onset_brackets()):
         print(f"  {v:24.6g}  {lo * rpm:.4g} .. {hi * rpm:.4g} (about {s * rpm:.3g})" if math.isfinite(s)
               else f"  {v:24.6g}  none on the grid")
     for v, s, why in smap.failures:
-        print(f"  FAILED {key} = {v:g} at {s * 60 / (2 * math.pi):.1f} rpm: {why}")
+        print(f"  FAILED {key} = {v:g} at {s * RPM_PER_RAD_S:.1f} rpm: {why}")
 
     def write(folder):
         out = [smap.to_csv(folder / "stability_map.csv")]
@@ -598,7 +599,7 @@ def _cmd_continuation(args) -> int:
     out_dir = Path(args.out) if args.out else ld.outputs.dir
     check_out_dir(out_dir, "--out" if args.out else "the scene's output.dir")
     check_replaceable(out_dir)
-    rpm = 2 * math.pi / 60
+    rpm = RAD_S_PER_RPM
     print(f"kedfem {__version__}: continuation of {ld.scene.name or ld.scene.mech.name} in speed from {lo:g} to "
           f"{hi:g} rpm ...", flush=True)
     with _report_warnings():

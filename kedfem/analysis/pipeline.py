@@ -54,6 +54,7 @@ from .resolution import ResolutionFloor
 from .results import PeriodicResult, Sampler, Stability, Timings
 from .scene import MAX_STEPS, Scene
 from .stability_floor import StabilityFloor, undamped as _undamped
+from ..units import RPM_PER_RAD_S
 
 __all__ = ["solve", "assemble_scene", "START_ELEMENTS", "OUTPUT_STEPS"]
 
@@ -390,7 +391,7 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
         returned: its last iterate is no answer, and neither is a stability verdict from it)."""
         from ..errors import NonlinearSolveError
         sc = self.scene
-        rpm = 60.0 / (2 * math.pi)
+        rpm = RPM_PER_RAD_S
         w = abs(sc.mech.drives[0].speed)
         if sc.nonlinear_method == "newton":
             tried = (f"Newton's method with a line search from the linear response on {final.n} time elements, "

@@ -20,6 +20,7 @@ from ..model import elements as el
 from .block_forces import BlockForces
 from .displacements import Displacements
 from .hooks import hook
+from ..units import RPM_PER_RAD_S
 from .peak_refinement import PEAK_STATIONS, PeakRefinement
 from .peak_search import grid_peak as _grid_peak
 from .modal import Frequencies, frequencies_over_cycle, modes_at
@@ -325,7 +326,7 @@ class PeriodicResult(Displacements, SectionForces, BlockForces, PeakRefinement):
     # ---------------------------------------------------------------- basics
     def __repr__(self) -> str:
         sc = self.scene
-        rpm = abs(sc.mech.drives[0].speed) * 60.0 / (2.0 * math.pi) if sc.mech.drives else float("nan")
+        rpm = abs(sc.mech.drives[0].speed) * RPM_PER_RAD_S if sc.mech.drives else float("nan")
         err = f", error {self.error.peak:.1e}" if getattr(self.error, "peak", None) is not None else ""
         stab = self.stability.verdict if self.stability is not None else ("stable" if self.stable else "UNSTABLE")
         return (f"<PeriodicResult {sc.name or sc.mech.name}: {rpm:.6g} rpm, {self.model.n_dof} DOFs, "

@@ -33,10 +33,10 @@ def _name(branch) -> str:
     return "speed_rad_s" if branch.parameter == "speed" else branch.parameter
 
 
-def _brackets(branch) -> tuple[str, str]:
+def _brackets(parameter: str) -> tuple[str, str]:
     """The bifurcation table's bracket columns: with the parameter's unit as a suffix where it has
     one (the speed in rad/s); a scene-file parameter's unit is its key's."""
-    return ("bracket_lo_rad_s", "bracket_hi_rad_s") if branch.parameter == "speed" else ("bracket_lo", "bracket_hi")
+    return ("bracket_lo_rad_s", "bracket_hi_rad_s") if parameter == "speed" else ("bracket_lo", "bracket_hi")
 
 
 def to_csv(branch, path) -> tuple[Path, Path]:
@@ -67,7 +67,7 @@ def to_csv(branch, path) -> tuple[Path, Path]:
     bif = path.with_name(path.stem + "_bifurcations.csv")
     with atomic_path(bif) as tmp, open(tmp, "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(("kind", _name(branch)) + (("speed_rpm",) if speed else ()) + _brackets(branch) + (
+        w.writerow(("kind", _name(branch)) + (("speed_rpm",) if speed else ()) + _brackets(branch.parameter) + (
             "multiplier_re", "multiplier_im", "stable_before", "stable_after", "periods"))
         for br in _branches(branch):
             for b in br.bifurcations:
@@ -186,9 +186,9 @@ def read(folder) -> "Branch":
             branches.setdefault(periods, []).append(BranchPoint(
                 num(rs[0][value_key]), peaks, errs, np.zeros(0, complex), rho, rs[0]["stable"] == "True", periods))
         found: dict = {}
-        lo_hi = ("bracket_lo_rad_s", "bracket_hi_rad_s") if parameter == "speed" else ("bracket_lo", "bracket_hi")
+        lo_hi = _brackets(parameter)
         if bifs and lo_hi[0] not in bifs[0]:  # written before the table convention (issue 27)
-            lo_hi = ("bracket_lo", "bracket_hi")
+            lo_hi = _brackets("")
         for b in bifs:
             found.setdefault(int(b["periods"]), []).append(Bifurcation(
                 b["kind"], num(b[value_key]), tuple(num(b[k]) for k in lo_hi),

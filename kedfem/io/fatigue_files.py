@@ -24,11 +24,12 @@ from .export import atomic_path
 
 __all__ = ["write_fatigue_csv", "write_histories"]
 
+#: ``(array of histories.npz, quantity and unit of histories.csv)`` of each history
+_TABLE = (("stress_top_Pa", "stress_top", "Pa"), ("stress_bottom_Pa", "stress_bottom", "Pa"),
+          ("axial_force_N", "axial_force", "N"), ("bending_moment_Nm", "bending_moment", "N m"),
+          ("deflection_m", "deflection", "m"))
 #: the arrays of ``histories.npz`` (the name and unit of each)
-QUANTITIES = ("stress_top_Pa", "stress_bottom_Pa", "axial_force_N", "bending_moment_Nm", "deflection_m")
-#: ``(quantity, unit)`` of each of :data:`QUANTITIES` in ``histories.csv``
-CSV_QUANTITIES = (("stress_top", "Pa"), ("stress_bottom", "Pa"), ("axial_force", "N"), ("bending_moment", "N m"),
-                  ("deflection", "m"))
+QUANTITIES = tuple(key for key, _name, _unit in _TABLE)
 
 
 def write_fatigue_csv(table: FatigueTable, path) -> Path:
@@ -88,7 +89,7 @@ def write_histories(res, csv_path, npz_path=None, per_element: int = 1) -> list[
         deg = np.degrees(res.crank_angle) % 360.0
         rows = ["crank_angle_deg,link,station_m,quantity,value,unit"]
         for link, d in data.items():
-            for q, (name, unit) in zip(QUANTITIES, CSV_QUANTITIES):
+            for q, name, unit in _TABLE:
                 X = d[q]
                 for k in range(res.n):  # rows of text: one per instant
                     a = f"{deg[k]:.6f},{link},"
