@@ -87,6 +87,26 @@ def test_geometric_matrix_is_int_of_slope_products():
     np.testing.assert_allclose(kgb[1, 0], 3.0 * kg)
 
 
+def test_geometric_stiffness_of_a_varying_axial_force_is_its_integral():
+    """int N(x) v'^T v' dx for a quadratic N (a link's own inertia makes it so), against quadrature;
+    a constant N gives the mean-force matrix."""
+    def dNv(x):
+        xi = x / L
+        return np.array([0, (-6 * xi + 6 * xi**2) / L, 1 - 4 * xi + 3 * xi**2, 0,
+                         (6 * xi - 6 * xi**2) / L, -2 * xi + 3 * xi**2])
+
+    def N(x):
+        return 120.0 - 300.0 * x + 450.0 * x**2
+    Gq = gauss(lambda x: N(x) * np.outer(dNv(x), dNv(x)))
+    kg = el.geometric_stiffness_varying([L], N(el.AXIAL_XI * L)[None, :])[0]
+    np.testing.assert_allclose(kg, Gq, rtol=1e-12, atol=1e-12)
+    # the mean force alone misses the variation: the matrices differ by far more than round-off
+    mean = gauss(lambda x: N(x) * np.ones((1, 1)))[0, 0] / L
+    assert np.abs(el.geometric_stiffness(L, mean)[0] - Gq).max() > 1e-3 * np.abs(Gq).max()
+    np.testing.assert_allclose(el.geometric_stiffness_varying([L, 2 * L], np.full((3, 2, 4), 2.0))[1, 1],
+                               el.geometric_stiffness(2 * L, 2.0)[0], rtol=1e-13, atol=1e-14)
+
+
 def test_coupling_skew_matches_quadrature_and_is_skew():
     S = np.array([[0, -1.0], [1.0, 0]])
     msq = gauss(lambda x: RHOA * N_at(x).T @ S @ N_at(x))

@@ -18,10 +18,11 @@ stays in equilibrium with its end forces). In the link's rotating frame
 link's angular speed and acceleration, ``r0''`` the rigid-body acceleration
 of the point, ``N`` the axial force)::
 
-    q = -rhoA [(R^T r0'')_y + v'' + 2 w u' + a u - w^2 v] + rhoA g_y + N v_h''
+    q = -rhoA [(R^T r0'')_y + v'' + 2 w u' + a u - w^2 v] + rhoA g_y + (N v_h')'
     p = -rhoA [(R^T r0'')_x + u'' - 2 w v' - a v - w^2 u] + rhoA g_x
 
-with each term present only when the scene's effects put it in the model
+(``(N v_h')' = N v_h'' - p v_h'`` with ``N`` varying along the element as the
+axial load ``p`` makes it) with each term present only when the scene's effects put it in the model
 (``inertia``, ``coupling``, ``gravity``, ``axial_stiffening`` or
 ``geometric_nonlinearity``). The loads are taken cubic along the element
 (their values at four points; the rigid-body part is linear, the elastic
@@ -139,8 +140,9 @@ def element_loads(d, dd, ddd, *, L, rhoA, s1, omega, alpha, a_loc, g_loc=None, N
         Acceleration of joint ``a`` in the link's frame [m/s^2].
     g_loc : ndarray, shape (n, 2), optional
         Gravity in the link's frame [m/s^2] (None: no weight).
-    N : ndarray, shape (n, ne), optional
-        Axial force of the elements [N] (None: no geometric stiffness).
+    N : ndarray, shape (n, ne) or (n, ne, 4), optional
+        Axial force of the elements [N]: the mean (the axial load ``p`` makes it vary along
+        the element) or its values at :data:`LOAD_POINTS` (None: no geometric stiffness).
     inertia, coupling : bool
         The rigid-body inertial load, and the rotating-frame terms of the
         elastic motion, are in the model.
@@ -180,13 +182,44 @@ def element_loads(d, dd, ddd, *, L, rhoA, s1, omega, alpha, a_loc, g_loc=None, N
         q = q + rhoA * g_loc[:, None, None, 1]
         p = p + rhoA * g_loc[:, None, None, 0]
     if N is not None:
-        if np.ndim(L) == 0:
-            B = el.shape_curvatures(L, LOAD_POINTS)[0]  # (4, 6)
-            q = q + N[..., None] * (d @ B.T)
+        # (N v')' = N v'' + N' v', N along the element: the mean plus the fixed-end force of p,
+        # or given at the load points
+        if N.ndim == q.ndim:
+            Nx = N
         else:
-            B = el.shape_curvatures(L, LOAD_POINTS)  # (ne, 4, 6)
-            q = q + N[..., None] * np.einsum("epi,tei->tep", B, d)
+            Nx = N[..., None] + Lx * (p @ fixed_end_maps(LOAD_POINTS)[1].T)
+        dN = (Nx @ _LOAD_SLOPES.T) / Lx
+        B = el.shape_curvatures(L, LOAD_POINTS)  # (ne or 1, 4, 6)
+        S = _shape_slopes(L, LOAD_POINTS)
+        if np.ndim(L) == 0:
+            q = q + Nx * (d @ B[0].T) + dN * (d @ S[0].T)
+        else:
+            q = q + Nx * np.einsum("epi,tei->tep", B, d) + dN * np.einsum("epi,tei->tep", S, d)
     return q, p
+
+
+def _load_slopes() -> np.ndarray:
+    """``D`` (4, 4): the slope ``d f / d xi`` at :data:`LOAD_POINTS` of the cubic through ``f`` there."""
+    D = np.zeros((LOAD_POINTS.size, LOAD_POINTS.size))
+    for j in range(LOAD_POINTS.size):
+        others = np.delete(LOAD_POINTS, j)
+        D[:, j] = (Polynomial.fromroots(others) / np.prod(LOAD_POINTS[j] - others)).deriv()(LOAD_POINTS)
+    return D
+
+
+_LOAD_SLOPES = _load_slopes()
+
+
+def _shape_slopes(L, xi) -> np.ndarray:
+    """Slopes ``d N_v / dx`` of the transverse shape functions at fractions ``xi``, (n_el, nx, 6)."""
+    L = np.atleast_1d(np.asarray(L, dtype=float))
+    H = el.hermite(xi, 1)
+    S = np.zeros((L.size, H.shape[1], 6))
+    S[..., 1] = H[0] / L[:, None]
+    S[..., 2] = H[1]
+    S[..., 4] = H[2] / L[:, None]
+    S[..., 5] = H[3]
+    return S
 
 
 def section_forces(d, q, p, *, L, EA, EI, xi, N_h=None):

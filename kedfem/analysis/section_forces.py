@@ -10,7 +10,9 @@ import logging
 
 import numpy as np
 
+from ..fe.assembler import Assembler
 from ..model import elements as el
+from ..motion.kinetostatics import link_axial_force, link_axial_force_at
 from . import recovery
 from ..errors import InputError
 from .stations import _element_length, _on_stations, _per_element
@@ -171,10 +173,33 @@ class SectionForces:
             q, p = recovery.element_loads(
                 d, rates[0], rates[1], L=Le, rhoA=float(b.rhoA[sl][0]), s1=np.arange(ne) * Le if np.ndim(Le) == 0 else lk.nodes[:-1],
                 omega=mo.angular_velocity(link), alpha=mo.angular_acceleration(link),
-                a_loc=local(mo.a[:, mo.joint_names.index(lk.a)]), g_loc=g, N=N_h if stiff else None,
+                a_loc=local(mo.a[:, mo.joint_names.index(lk.a)]), g_loc=g,
+                N=self._axial_along(lk, Le, N_h, "geometric_nonlinearity" in eff) if stiff else None,
                 inertia="inertia" in eff, coupling="coupling" in eff)
         out = self._cache[key] = (q, p, N_h)
         return out
+
+    def _axial_along(self, lk, Le, N_h, elastic: bool) -> np.ndarray:
+        """The axial force the model's geometric stiffness carries, at the load points of the link's
+        elements (n, n_el, 4) [N]: the kinetostatic force (``axial_stiffening``), or the elastic
+        mean ``N_h`` plus the kinetostatic force's variation about its element mean
+        (``geometric_nonlinearity``); the recovery balances each element with it."""
+        key = ("kinetostatic forces",)
+        if key not in self._cache:
+            asm = Assembler(self.model, self.motion, self.scene.effects)
+            self._cache[key] = (asm.joint_forces(), asm.weight)
+        forces, weight = self._cache[key]
+        s1 = np.asarray(np.arange(lk.elements) * Le if np.ndim(Le) == 0 else lk.nodes[:-1], float)
+        L = np.broadcast_to(np.asarray(Le, float), s1.shape)
+        mech = self.model.mech
+        if not mech.links[lk.name].kinematic:  # a redundant member: no kinetostatic force in the model
+            return N_h[..., None] + np.zeros(4) if elastic else np.zeros(N_h.shape + (4,))
+        N = link_axial_force_at(mech, self.motion, forces, lk.name, s1[:, None] + L[:, None] * recovery.LOAD_POINTS,
+                                gravity=weight, side=(s1 + 0.5 * L)[:, None])
+        if not elastic:
+            return N
+        mean = link_axial_force(mech, self.motion, forces, lk.name, s1, s1 + L, gravity=weight)
+        return N_h[..., None] + N - mean[..., None]
 
     def axial_force(self, link: str) -> np.ndarray:
         """Elastic axial force at the element midpoints (n, n_el) [N], tension positive.

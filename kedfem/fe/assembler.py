@@ -19,7 +19,7 @@ import scipy.sparse as sp
 from ..errors import InputError, KedError
 from ..model import elements as el
 from ..motion.kinematics import Motion
-from ..motion.kinetostatics import JointForces, kinetostatics, link_axial_force
+from ..motion.kinetostatics import JointForces, kinetostatics, link_axial_force_at
 from .maps import GroupMap
 from .model import FEModel
 from .scatter import ACTIVE_WIDTH, ActiveTerms, column_patterns
@@ -215,18 +215,19 @@ class Assembler:
         return [(p.mass, p.J if g.ids[k, 1] >= 0 else 0.0) for k, p in enumerate(g.meta.get("items", ()))]
 
     def beam_axial_kinetostatic(self) -> np.ndarray:
-        """Mean kinetostatic axial force per beam element, shape (n, n_el) [N]."""
+        """Kinetostatic axial force of every beam element at its Gauss points
+        (:data:`kedfem.model.elements.AXIAL_XI`), shape (n, n_el, 4) [N]."""
         if self._axial is None:
             b = self.model.beam
             forces = self.joint_forces()
-            out = np.zeros((self.motion.n, b.L.size))
+            out = np.zeros((self.motion.n, b.L.size, el.AXIAL_XI.size))
             for name in b.links:
                 if not self.mech.links[name].kinematic:
                     continue  # a redundant member takes no kinetostatic force
                 sl = self.model.link_elements(name)
-                s1 = b.s1[sl]
-                out[:, sl] = link_axial_force(self.mech, self.motion, forces, name, s1, s1 + b.L[sl],
-                                              gravity=self.weight)
+                s = b.s1[sl, None] + b.L[sl, None] * el.AXIAL_XI
+                out[:, sl] = link_axial_force_at(self.mech, self.motion, forces, name, s, gravity=self.weight,
+                                                 side=(b.s1[sl] + 0.5 * b.L[sl])[:, None])
             self._axial = out
         return self._axial
 

@@ -28,6 +28,9 @@ __all__ = [
     "lumped_mass",
     "geometric_matrix",
     "geometric_stiffness",
+    "geometric_stiffness_varying",
+    "AXIAL_XI",
+    "AXIAL_W",
     "coupling_skew",
     "linear_load",
     "rotation_blocks",
@@ -237,6 +240,46 @@ def geometric_stiffness(L, N):
         N = np.full(G.shape[0], float(N))
     out = np.zeros(N.shape + (6, 6))
     out[..., V_DOFS[:, None], V_DOFS[None, :]] = N[..., None, None] * G
+    return out
+
+
+#: Abscissae (fractions of the element's length) and weights of the 4-point Gauss-Legendre
+#: rule :func:`geometric_stiffness_varying` reads the axial force at
+AXIAL_XI, AXIAL_W = (0.5 * (np.polynomial.legendre.leggauss(4)[0] + 1.0),
+                     0.5 * np.polynomial.legendre.leggauss(4)[1])
+
+
+def geometric_stiffness_varying(L, N):
+    """Geometric stiffness ``int N(x) v'^T v' dx`` of planar frame elements under an axial force
+    that varies along them (exact for ``N`` up to cubic in ``x``).
+
+    A link's kinetostatic axial force varies along it (quadratically under its own inertia):
+    an element's mean force in :func:`geometric_stiffness` makes the bending deflection
+    converge at second order in the element length, the force at the Gauss points at fourth.
+
+    Parameters
+    ----------
+    L : array_like, shape (n_el,)
+        Element lengths [m].
+    N : array_like, shape (..., n_el, 4)
+        Axial force [N], tension positive, at the abscissae :data:`AXIAL_XI` of each element.
+
+    Returns
+    -------
+    kG : ndarray, shape (..., n_el, 6, 6)
+    """
+    (L,) = _props(L)
+    N = np.asarray(N, dtype=float)
+    xi = AXIAL_XI
+    # v' = [H1'/L, H2', H3'/L, H4'] at the Gauss points, (n_el, 4 points, 4 DOFs)
+    dv = np.empty((L.size, xi.size, 4))
+    dv[:, :, 0] = (6.0 * xi**2 - 6.0 * xi) / L[:, None]
+    dv[:, :, 1] = 1.0 - 4.0 * xi + 3.0 * xi**2
+    dv[:, :, 2] = -dv[:, :, 0]
+    dv[:, :, 3] = 3.0 * xi**2 - 2.0 * xi
+    basis = (AXIAL_W * L[:, None])[..., None, None] * dv[..., :, None] * dv[..., None, :]  # (n_el, 4, 4, 4)
+    out = np.zeros(N.shape[:-1] + (6, 6))
+    out[..., V_DOFS[:, None], V_DOFS[None, :]] = np.einsum("...eg,egij->...eij", N, basis)
     return out
 
 

@@ -36,7 +36,7 @@ from ..errors import KedError
 from .kinematics import Motion, slot_direction
 from ..model.mechanism import Mechanism
 
-__all__ = ["JointForces", "KnownForces", "kinetostatics", "link_axial_force"]
+__all__ = ["JointForces", "KnownForces", "kinetostatics", "link_axial_force", "link_axial_force_at"]
 
 log = logging.getLogger(__name__)
 
@@ -558,6 +558,32 @@ def kinetostatics(mech: Mechanism, motion: Motion, *, inertia: bool = True,
                        contact_moment)
 
 
+def _axial_parts(mech: Mechanism, motion: Motion, forces: JointForces, link: str, gravity: bool):
+    """The terms of a link's kinetostatic axial force ``N(s)`` (tension positive):
+    ``N(s) = c1 s - w2 s^2 / 2 - Fa + sum_k f_k [s > xi_k]`` with ``c1 = rhoA (a_a.e1 - g.e1)``,
+    ``w2 = rhoA omega^2``, each shape (n,), and the steps ``(xi_k, f_k)`` of the pins on it."""
+    lk = mech.links[link]
+    mi = motion.member_names.index(link)
+    th = motion.theta[:, mi]
+    e1 = np.stack([np.cos(th), np.sin(th)], axis=-1)
+    rhoA = lk.mass / lk.length
+    ja = motion.joint_names.index(lk.a)
+    aa = np.einsum("nd,nd->n", motion.a[:, ja], e1)
+    Fa = np.einsum("nd,nd->n", forces.on(link, lk.a), e1)
+    g = np.asarray(mech.gravity) if gravity else np.zeros(2)
+    steps = []
+    for j, F in forces.contact.items():  # a block on the link pushes it along its axis (locked, friction)
+        jt = mech.joints[j]
+        if jt.on != link:
+            continue
+        _o, d, _ax = mech.slot_line(j)
+        e0 = (np.array(mech.joints[lk.b].at) - np.array(mech.joints[lk.a].at)) / lk.length
+        steps.append((float(d @ e0), np.einsum("nd,nd->n", F, e1)))  # the pin's force on the link is -F
+    for j, xi in zip(lk.through, lk.through_at):  # a pin the link passes through: its force beyond it
+        steps.append((xi, -np.einsum("nd,nd->n", forces.on(link, j), e1)))
+    return rhoA * (aa - e1 @ g), rhoA * motion.omega[:, mi] ** 2, Fa, steps
+
+
 def link_axial_force(mech: Mechanism, motion: Motion, forces: JointForces, link: str,
                      s1: np.ndarray, s2: np.ndarray, gravity: bool = False) -> np.ndarray:
     """Mean kinetostatic axial force over segments ``[s1, s2]`` of a link.
@@ -579,31 +605,43 @@ def link_axial_force(mech: Mechanism, motion: Motion, forces: JointForces, link:
     N : ndarray, shape (n, n_seg)
         Mean axial force per segment [N].
     """
-    lk = mech.links[link]
-    mi = motion.member_names.index(link)
-    th = motion.theta[:, mi]
-    e1 = np.stack([np.cos(th), np.sin(th)], axis=-1)
-    rhoA = lk.mass / lk.length
-    ja = motion.joint_names.index(lk.a)
-    aa = np.einsum("nd,nd->n", motion.a[:, ja], e1)
-    Fa = np.einsum("nd,nd->n", forces.on(link, lk.a), e1)
-    g = np.asarray(mech.gravity) if gravity else np.zeros(2)
-    ge = e1 @ g
-    w2 = motion.omega[:, mi] ** 2
+    c1, w2, Fa, steps = _axial_parts(mech, motion, forces, link, gravity)
     sm = 0.5 * (s1 + s2)
     sq = (s1**2 + s1 * s2 + s2**2) / 3.0
-    N = (rhoA * (aa[:, None] * sm - 0.5 * w2[:, None] * sq) - Fa[:, None]
-         - rhoA * ge[:, None] * sm)
-    for j, F in forces.contact.items():  # a block on the link pushes it along its axis (locked, friction)
-        jt = mech.joints[j]
-        if jt.on != link:
-            continue
-        _o, d, _ax = mech.slot_line(j)
-        e0 = (np.array(mech.joints[lk.b].at) - np.array(mech.joints[lk.a].at)) / lk.length
-        xi = float(d @ e0)
+    N = c1[:, None] * sm - 0.5 * w2[:, None] * sq - Fa[:, None]
+    for xi, f in steps:
         beyond = np.clip((s2 - xi) / np.maximum(s2 - s1, 1e-300), 0.0, 1.0)  # share of the segment past xi
-        N = N + np.einsum("nd,nd->n", F, e1)[:, None] * beyond  # the pin's force on the link is -F
-    for j, xi in zip(lk.through, lk.through_at):  # a pin the link passes through: its force beyond it
-        beyond = np.clip((s2 - xi) / np.maximum(s2 - s1, 1e-300), 0.0, 1.0)
-        N = N - np.einsum("nd,nd->n", forces.on(link, j), e1)[:, None] * beyond
+        N = N + f[:, None] * beyond
+    return N
+
+
+def link_axial_force_at(mech: Mechanism, motion: Motion, forces: JointForces, link: str,
+                        s: np.ndarray, gravity: bool = False, side: np.ndarray | None = None) -> np.ndarray:
+    """Kinetostatic axial force at abscissae ``s`` of a link (the function
+    :func:`link_axial_force` averages; a pin's step counts beyond its abscissa).
+
+    Parameters
+    ----------
+    s : ndarray, shape (...)
+        Distances from joint ``a`` [m].
+    side : ndarray, optional
+        Broadcastable to ``s``: for a point on a pin (within 1e-12 of the link's length), an
+        abscissa on the side it belongs to (an element's midpoint: the element beyond the pin
+        takes the pin's force from its first point on).
+
+    Returns
+    -------
+    N : ndarray, shape (n, ...)
+        Axial force [N], tension positive.
+    """
+    c1, w2, Fa, steps = _axial_parts(mech, motion, forces, link, gravity)
+    s = np.asarray(s, dtype=float)
+    ex = (slice(None),) + (None,) * s.ndim
+    N = c1[ex] * s - 0.5 * w2[ex] * s**2 - Fa[ex]
+    tol = 1e-12 * mech.links[link].length
+    for xi, f in steps:
+        beyond = s > xi + tol
+        if side is not None:
+            beyond = beyond | ((np.abs(s - xi) <= tol) & (side > xi))
+        N = N + f[ex] * beyond
     return N

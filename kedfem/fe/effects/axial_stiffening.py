@@ -1,7 +1,9 @@
 """``axial_stiffening``: geometric stiffness of the kinetostatic (rigid-body) forces.
 
-A link's elements take ``k_G(N)`` of the mean kinetostatic axial force on
-each element (unless ``geometric_nonlinearity`` carries the links' axial
+A link's elements take ``int N(x) v'^T v' dx`` of the kinetostatic axial force
+along them (read at four Gauss points per element: exact for the quadratic
+force of a link's own inertia, so the deflection converges at fourth order in
+the element length; unless ``geometric_nonlinearity`` carries the links' axial
 forces from the elastic state); a rigid member with an elastic rotation
 ``phi`` takes ``sum F . rho`` of the forces on it about its reference point
 (joint forces, its weight with ``gravity``, and its inertial force in the
@@ -34,7 +36,7 @@ class AxialStiffening(Effect):
         if bk is None or asm.carries_axial_forces:
             return
         N = asm.beam_axial_kinetostatic()[chunk.idx]
-        chunk.acc.add("beam", "K", bk.Tt @ el.geometric_stiffness(asm.model.beam.L, N) @ bk.T)
+        chunk.acc.add("beam", "K", bk.Tt @ el.geometric_stiffness_varying(asm.model.beam.L, N) @ bk.T)
 
     def terms(self, asm, chunk: Chunk) -> dict | None:
         if not asm.model.rigid_groups:

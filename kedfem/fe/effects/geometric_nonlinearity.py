@@ -3,7 +3,11 @@
 Each element's axial force is ``N = EA eps`` with ``eps = (u2 - u1) / L +
 v^T G v / (2 L)``; the tangent stiffness ``EA/L (b b^T - b0 b0^T) + N G`` and
 the matching load are evaluated about the trial response (Newton's
-linearisation, docs/theory.md section 3). The links' axial forces then come
+linearisation, docs/theory.md section 3). ``N`` is constant on an element; its
+variation along the element, which the link's own inertia and weight make
+(quadratic), is the kinetostatic force's about its element mean, a linear term
+``int (N_ks - mean N_ks) v'^T v' dx`` (without it the deflections converge at
+second order in the element length, with it at fourth). The links' axial forces then come
 from the elastic state (``carries_axial_forces``). With Rayleigh ``beta`` the
 axial damping acts on the rate of the von Karman strain.
 """
@@ -17,7 +21,7 @@ import numpy as np
 from ...model import elements as el
 from ...motion.kinematics import Motion
 from ..structure import objective_rates
-from .base import Effect, StateTerms
+from .base import Chunk, Effect, StateTerms
 
 __all__ = ["GeometricNonlinearity"]
 
@@ -32,6 +36,16 @@ class GeometricNonlinearity(Effect):
 
     def state_dependent(self, mech) -> bool:
         return bool(mech.flexible_links)
+
+    def element_terms(self, asm, chunk: Chunk) -> None:
+        # the elastic N is constant on an element; its variation along it under the link's own
+        # inertia and weight is the kinetostatic force's about its mean (a linear term)
+        bk = chunk.beam
+        if bk is None:
+            return
+        N = asm.beam_axial_kinetostatic()[chunk.idx]
+        dev = N - np.einsum("...g,g->...", N, el.AXIAL_W)[..., None]
+        chunk.acc.add("beam", "K", bk.Tt @ el.geometric_stiffness_varying(asm.model.beam.L, dev) @ bk.T)
 
     def state_terms(self, asm, motion: Motion, U, V, out: StateTerms) -> None:
         b = asm.model.beam
