@@ -470,7 +470,9 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
             if n == n_out and level is lv:  # this level on these instants was read for the estimate
                 res._cache.update(cache_read)
         if shared_cache:
-            # the constraint maps depend on the motion only: built once per output grid
+            # the constraint maps and the kinetostatic forces depend on the motion only: built once
+            # per output grid
+            res._cache["grid"] = cache
             if "beam_map" in cache:
                 res._cache["beam_map"] = cache["beam_map"]
             else:

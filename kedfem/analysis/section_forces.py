@@ -184,11 +184,12 @@ class SectionForces:
         elements (n, n_el, 4) [N]: the kinetostatic force (``axial_stiffening``), or the elastic
         mean ``N_h`` plus the kinetostatic force's variation about its element mean
         (``geometric_nonlinearity``); the recovery balances each element with it."""
+        cache = self._cache.get("grid", self._cache)  # shared by the levels read on one grid
         key = ("kinetostatic forces",)
-        if key not in self._cache:
+        if key not in cache:
             asm = Assembler(self.model, self.motion, self.scene.effects)
-            self._cache[key] = (asm.joint_forces(), asm.weight)
-        forces, weight = self._cache[key]
+            cache[key] = (asm.joint_forces(), asm.weight)
+        forces, weight = cache[key]
         s1 = np.asarray(np.arange(lk.elements) * Le if np.ndim(Le) == 0 else lk.nodes[:-1], float)
         L = np.broadcast_to(np.asarray(Le, float), s1.shape)
         mech = self.model.mech
