@@ -17,7 +17,10 @@ whose rocker carries a welded arm with a tip mass, 3.9 - 4.1 for the
 deflections since the geometric stiffness follows the axial force along each
 element, where the element's mean force had made it 2.0 and the estimate 0.2x
 the truth). Below about 1e-6 of a peak the changes no longer follow the rate
-(the welded arm's stresses at the weld: 4e-7 on 8 elements, estimated 3e-8)::
+(the welded arm's stresses at the weld: 4e-7 on 8 elements, estimated 3e-8),
+and under ``geometric_nonlinearity`` at finite deflection the element-constant
+membrane strain makes the welded arm's deflections converge at about 2 (5e-7
+of the peak on 8 elements; the four-bar's at 3.6 - 4.4)::
 
     error(e) ~ |q(e) - q(e_c)| / |1 - (e / e_c)^p|
 

@@ -174,7 +174,8 @@ class SectionForces:
                 d, rates[0], rates[1], L=Le, rhoA=float(b.rhoA[sl][0]), s1=np.arange(ne) * Le if np.ndim(Le) == 0 else lk.nodes[:-1],
                 omega=mo.angular_velocity(link), alpha=mo.angular_acceleration(link),
                 a_loc=local(mo.a[:, mo.joint_names.index(lk.a)]), g_loc=g,
-                N=self._axial_along(lk, Le, N_h, "geometric_nonlinearity" in eff) if stiff else None,
+                N=(N_h if "inertia" not in eff else self._axial_along(lk, Le, N_h, "geometric_nonlinearity" in eff))
+                if stiff else None,
                 inertia="inertia" in eff, coupling="coupling" in eff)
         out = self._cache[key] = (q, p, N_h)
         return out

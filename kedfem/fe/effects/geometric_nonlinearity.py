@@ -3,11 +3,14 @@
 Each element's axial force is ``N = EA eps`` with ``eps = (u2 - u1) / L +
 v^T G v / (2 L)``; the tangent stiffness ``EA/L (b b^T - b0 b0^T) + N G`` and
 the matching load are evaluated about the trial response (Newton's
-linearisation, docs/theory.md section 3). ``N`` is constant on an element; its
-variation along the element, which the link's own inertia and weight make
-(quadratic), is the kinetostatic force's about its element mean, a linear term
-``int (N_ks - mean N_ks) v'^T v' dx`` (without it the deflections converge at
-second order in the element length, with it at fourth). The links' axial forces then come
+linearisation, docs/theory.md section 3). ``N`` is constant on an element; with
+``inertia`` among the effects its variation along the element under the link's
+own inertia (quadratic) is the kinetostatic force's about its element mean, a
+linear term ``int (N_ks - mean N_ks) v'^T v' dx``. Measured on a crank-rocker
+with a welded arm and a tip mass (2 -> 16 elements per link): the deflections'
+mesh error is 18x smaller with it, but still converges at second order at finite
+deflection (the element-constant membrane strain; at fourth order in the
+small-deflection limit, E raised 10x). The links' axial forces then come
 from the elastic state (``carries_axial_forces``). With Rayleigh ``beta`` the
 axial damping acts on the rate of the von Karman strain.
 """
@@ -41,7 +44,7 @@ class GeometricNonlinearity(Effect):
         # the elastic N is constant on an element; its variation along it under the link's own
         # inertia and weight is the kinetostatic force's about its mean (a linear term)
         bk = chunk.beam
-        if bk is None:
+        if bk is None or "inertia" not in asm.effects:
             return
         N = asm.beam_axial_kinetostatic()[chunk.idx]
         dev = N - np.einsum("...g,g->...", N, el.AXIAL_W)[..., None]
