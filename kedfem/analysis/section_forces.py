@@ -185,23 +185,25 @@ class SectionForces:
         elements (n, n_el, 4) [N]: the kinetostatic force (``axial_stiffening``), or the elastic
         mean ``N_h`` plus the kinetostatic force's variation about its element mean
         (``geometric_nonlinearity``); the recovery balances each element with it."""
-        cache = self._cache.get("grid", self._cache)  # shared by the levels read on one grid
-        key = ("kinetostatic forces",)
-        if key not in cache:
-            asm = Assembler(self.model, self.motion, self.scene.effects)
-            cache[key] = (asm.joint_forces(), asm.weight)
-        forces, weight = cache[key]
-        s1 = np.asarray(np.arange(lk.elements) * Le if np.ndim(Le) == 0 else lk.nodes[:-1], float)
-        L = np.broadcast_to(np.asarray(Le, float), s1.shape)
         mech = self.model.mech
         if not mech.links[lk.name].kinematic:  # a redundant member: no kinetostatic force in the model
             return N_h[..., None] + np.zeros(4) if elastic else np.zeros(N_h.shape + (4,))
-        N = link_axial_force_at(mech, self.motion, forces, lk.name, s1[:, None] + L[:, None] * recovery.LOAD_POINTS,
-                                gravity=weight, side=(s1 + 0.5 * L)[:, None])
-        if not elastic:
-            return N
-        mean = link_axial_force(mech, self.motion, forces, lk.name, s1, s1 + L, gravity=weight)
-        return N_h[..., None] + N - mean[..., None]
+        cache = self._cache.get("grid", self._cache)  # shared by the levels read on one grid
+        key = ("kinetostatic axial force", lk.name, elastic)
+        if key not in cache:
+            if ("kinetostatic forces",) not in cache:
+                asm = Assembler(self.model, self.motion, self.scene.effects)
+                cache[("kinetostatic forces",)] = (asm.joint_forces(), asm.weight)
+            forces, weight = cache[("kinetostatic forces",)]
+            s1 = np.asarray(np.arange(lk.elements) * Le if np.ndim(Le) == 0 else lk.nodes[:-1], float)
+            L = np.broadcast_to(np.asarray(Le, float), s1.shape)
+            N = link_axial_force_at(mech, self.motion, forces, lk.name,
+                                    s1[:, None] + L[:, None] * recovery.LOAD_POINTS, gravity=weight,
+                                    side=(s1 + 0.5 * L)[:, None])
+            if elastic:  # the variation about the element mean
+                N = N - link_axial_force(mech, self.motion, forces, lk.name, s1, s1 + L, gravity=weight)[..., None]
+            cache[key] = N
+        return N_h[..., None] + cache[key] if elastic else cache[key]
 
     def axial_force(self, link: str) -> np.ndarray:
         """Elastic axial force at the element midpoints (n, n_el) [N], tension positive.
