@@ -24,6 +24,9 @@ RESOLVE_OMEGA_H = 2.0 * math.pi
 BAND_INSTANTS = 12
 #: most instants the rigid-body motion's harmonics are sampled at (:meth:`ResolutionFloor._motion_band`)
 MOTION_SAMPLES = 32768
+#: lowest level (of the largest) the motion's harmonics are read at: below it the FFT's round-off
+#: reads as harmonics up to the sampling limit (rtol 1e-13 on the four-bar)
+MOTION_NOISE = 1e-12
 
 
 def _harmonic_reach(X: np.ndarray, period: float, level: float, f_low: float = 0.0) -> float:
@@ -134,18 +137,19 @@ class ResolutionFloor:
         below the true error). Beyond the last sampling a logged warning says so.
         """
         T = self.scene.period
+        level = max(level, MOTION_NOISE)
         while True:
             mo = self._band_motion(samples)
             X = np.concatenate([x.reshape(samples, -1) for x in (mo.a, mo.alpha, mo.omega ** 2, mo.sdd)
                                 if x.size], axis=1)
             reach = _harmonic_reach(X, T, level)
-            if reach * T <= samples // 4:
+            if reach * T <= samples // 4 + 0.5:
                 return reach
             if samples * 4 > MOTION_SAMPLES:
-                log.warning("%s: the rigid-body motion has harmonics above %.1e of its largest up to the %d "
-                            "per cycle that %d samples resolve (a toggle or a change point the linkage passes "
-                            "close to): the time elements may not resolve it, and the error estimate may be low",
-                            self.scene.mech.name, level, samples // 2, samples)
+                log.warning("%s: the rigid-body motion has harmonics above %.1e of its largest up to %.0f per "
+                            "cycle, in the upper half of what %d samples resolve (a toggle or a change point the "
+                            "linkage passes close to): the time elements may not resolve it, and the error "
+                            "estimate may be low", self.scene.mech.name, level, reach * T, samples)
                 return reach
             samples *= 4
 

@@ -202,6 +202,7 @@ class SectionForces:
                                     side=(s1 + 0.5 * L)[:, None])
             if elastic:  # the variation about the element mean
                 N = N - link_axial_force(mech, self.motion, forces, lk.name, s1, s1 + L, gravity=weight)[..., None]
+            N.flags.writeable = False  # shared by the results read on the grid
             cache[key] = N
         return N_h[..., None] + cache[key] if elastic else cache[key]
 

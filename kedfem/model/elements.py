@@ -279,7 +279,7 @@ def geometric_stiffness_varying(L, N):
     dv[:, :, 3] = 3.0 * xi**2 - 2.0 * xi
     basis = (AXIAL_W * L[:, None])[..., None, None] * dv[..., :, None] * dv[..., None, :]  # (n_el, 4, 4, 4)
     lead = N.shape[:-2]
-    Ne = np.moveaxis(N.reshape((-1,) + N.shape[-2:]), 1, 0)  # (n_el, prod(lead), 4)
+    Ne = np.moveaxis(N.reshape((int(np.prod(lead)),) + N.shape[-2:]), 1, 0)  # (n_el, prod(lead), 4)
     kv = np.moveaxis(Ne @ basis.reshape(L.size, xi.size, 16), 0, 1).reshape(lead + (L.size, 4, 4))
     out = np.zeros(N.shape[:-1] + (6, 6))
     out[..., V_DOFS[:, None], V_DOFS[None, :]] = kv
