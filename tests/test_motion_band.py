@@ -78,3 +78,4 @@ def test_the_floor_does_not_read_round_off_as_harmonics():
     run = pipeline._Run(kf.Scene(mechanisms.build("four_bar"), rtol=1e-3), None)
     reach = run._motion_band(level=1e-16) * run.scene.period
     assert reach < 128 and set(run.__dict__["_band_cache"]) == {512}
+
