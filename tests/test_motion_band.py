@@ -20,18 +20,11 @@ RPM = 100.0
 
 
 def _near_change_point():
-    th0 = math.radians(10.0)
-    A = np.array([A_ * math.cos(th0), A_ * math.sin(th0)])
-    O4 = np.array([D_, 0.0])
-    r = np.linalg.norm(O4 - A)
-    x = (B_ * B_ - C_ * C_ + r * r) / (2 * r)
-    e = (O4 - A) / r
-    B = A + x * e + math.sqrt(B_ * B_ - x * x) * np.array([-e[1], e[0]])
     m = kf.Mechanism("near change point")
     m.ground("O2", at=(0, 0))
     m.ground("O4", at=(D_, 0))
-    m.joint("A", at=tuple(A))
-    m.joint("B", at=tuple(B))
+    m.joint("A", at=m.at_angle("O2", A_, math.radians(10.0)))
+    m.joint("B", at=m.at_lengths(("A", B_), ("O4", C_), branch="open"))
     steel, sec = kf.Material(E=2.06e11, rho=7850.0), kf.Section.rectangle(0.02, 0.006)
     m.link("crank", "O2", "A", rigid=True, mass=0.2)
     m.link("coupler", "A", "B", material=steel, section=sec, elements=2)

@@ -471,12 +471,8 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
                 res._cache.update(cache_read)
         if shared_cache:
             # the constraint maps and the kinetostatic forces depend on the motion only: built once
-            # per output grid
+            # per output grid (PeriodicResult._motion_cache)
             res._cache["grid"] = cache
-            if "beam_map" in cache:
-                res._cache["beam_map"] = cache["beam_map"]
-            else:
-                cache["beam_map"] = res._beam_map()
         return res
 
     # ------------------------------------------------------------------- run

@@ -49,6 +49,12 @@ LOAD_POINTS = np.array([0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0])
 
 
 @lru_cache(maxsize=1)
+def _lagrange(j: int) -> Polynomial:
+    """The Lagrange polynomial of :data:`LOAD_POINTS` that is 1 at the ``j``-th and 0 at the others."""
+    others = np.delete(LOAD_POINTS, j)
+    return Polynomial.fromroots(others) / np.prod(LOAD_POINTS[j] - others)
+
+
 def _basis() -> tuple[np.ndarray, np.ndarray]:
     """Power-series coefficients (4, 7) of the fixed-end moment and force of each Lagrange load."""
     cm = np.zeros((LOAD_POINTS.size, 7))
@@ -59,8 +65,7 @@ def _basis() -> tuple[np.ndarray, np.ndarray]:
         return P(1.0) - P(0.0)
 
     for j in range(LOAD_POINTS.size):
-        others = np.delete(LOAD_POINTS, j)
-        lj = Polynomial.fromroots(others) / np.prod(LOAD_POINTS[j] - others)  # Lagrange load, L = 1
+        lj = _lagrange(j)  # Lagrange load, L = 1
         # M'' = q with v = v' = 0 at both ends: M = Q2 + a + b x, int M = 0, int (1 - x) M = 0
         Q2 = lj.integ(2)
         a, b = np.linalg.solve([[1.0, 0.5], [0.5, 1.0 / 6.0]],
@@ -190,7 +195,7 @@ def element_loads(d, dd, ddd, *, L, rhoA, s1, omega, alpha, a_loc, g_loc=None, N
             Nx = N[..., None] + Lx * (p @ fixed_end_maps(LOAD_POINTS)[1].T)
         dN = (Nx @ _LOAD_SLOPES.T) / Lx
         B = el.shape_curvatures(L, LOAD_POINTS)  # (ne or 1, 4, 6)
-        S = _shape_slopes(L, LOAD_POINTS)
+        S = el.shape_slopes(L, LOAD_POINTS)
         if np.ndim(L) == 0:
             q = q + Nx * (d @ B[0].T) + dN * (d @ S[0].T)
         else:
@@ -200,26 +205,10 @@ def element_loads(d, dd, ddd, *, L, rhoA, s1, omega, alpha, a_loc, g_loc=None, N
 
 def _load_slopes() -> np.ndarray:
     """``D`` (4, 4): the slope ``d f / d xi`` at :data:`LOAD_POINTS` of the cubic through ``f`` there."""
-    D = np.zeros((LOAD_POINTS.size, LOAD_POINTS.size))
-    for j in range(LOAD_POINTS.size):
-        others = np.delete(LOAD_POINTS, j)
-        D[:, j] = (Polynomial.fromroots(others) / np.prod(LOAD_POINTS[j] - others)).deriv()(LOAD_POINTS)
-    return D
+    return np.stack([_lagrange(j).deriv()(LOAD_POINTS) for j in range(LOAD_POINTS.size)], axis=1)
 
 
 _LOAD_SLOPES = _load_slopes()
-
-
-def _shape_slopes(L, xi) -> np.ndarray:
-    """Slopes ``d N_v / dx`` of the transverse shape functions at fractions ``xi``, (n_el, nx, 6)."""
-    L = np.atleast_1d(np.asarray(L, dtype=float))
-    H = el.hermite(xi, 1)
-    S = np.zeros((L.size, H.shape[1], 6))
-    S[..., 1] = H[0] / L[:, None]
-    S[..., 2] = H[1]
-    S[..., 4] = H[2] / L[:, None]
-    S[..., 5] = H[3]
-    return S
 
 
 def section_forces(d, q, p, *, L, EA, EI, xi, N_h=None):

@@ -397,11 +397,17 @@ class PeriodicResult(Displacements, SectionForces, BlockForces, PeakRefinement):
         self._cache[key] = d
         return d
 
+    def _motion_cache(self) -> dict:
+        """The cache of what depends on the motion only: shared by the results a solve reads on one
+        output grid (its levels, for the estimate), else the result's own."""
+        return self._cache.get("grid", self._cache)
+
     def _beam_map(self):
-        """Constraint map of the beam elements over the cycle (built once per result)."""
-        gm = self._cache.get("beam_map")
+        """Constraint map of the beam elements over the cycle (built once per output grid)."""
+        cache = self._motion_cache()
+        gm = cache.get("beam_map")
         if gm is None:
-            gm = self._cache["beam_map"] = self.model.group_map("beam", self.motion)
+            gm = cache["beam_map"] = self.model.group_map("beam", self.motion)
         return gm
 
     def stations(self, link: str, per_element: int = 1, sides: bool = False) -> np.ndarray:

@@ -188,7 +188,7 @@ class SectionForces:
         mech = self.model.mech
         if not mech.links[lk.name].kinematic:  # a redundant member: no kinetostatic force in the model
             return N_h[..., None] + np.zeros(4) if elastic else np.zeros(N_h.shape + (4,))
-        cache = self._cache.get("grid", self._cache)  # shared by the levels read on one grid
+        cache = self._motion_cache()  # shared by the levels read on one grid
         key = ("kinetostatic axial force", lk.name, elastic)
         if key not in cache:
             if ("kinetostatic forces",) not in cache:

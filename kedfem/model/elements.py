@@ -36,6 +36,7 @@ __all__ = [
     "rotation_blocks",
     "shape_functions",
     "hermite",
+    "shape_slopes",
     "shape_curvatures",
     "timoshenko_stiffness",
     "U_DOFS",
@@ -271,12 +272,7 @@ def geometric_stiffness_varying(L, N):
     (L,) = _props(L)
     N = np.asarray(N, dtype=float)
     xi = AXIAL_XI
-    # v' = [H1'/L, H2', H3'/L, H4'] at the Gauss points, (n_el, 4 points, 4 DOFs)
-    dv = np.empty((L.size, xi.size, 4))
-    dv[:, :, 0] = (6.0 * xi**2 - 6.0 * xi) / L[:, None]
-    dv[:, :, 1] = 1.0 - 4.0 * xi + 3.0 * xi**2
-    dv[:, :, 2] = -dv[:, :, 0]
-    dv[:, :, 3] = 3.0 * xi**2 - 2.0 * xi
+    dv = shape_slopes(L, xi)[..., V_DOFS]  # v' per bending DOF at the Gauss points, (n_el, 4, 4)
     basis = (AXIAL_W * L[:, None])[..., None, None] * dv[..., :, None] * dv[..., None, :]  # (n_el, 4, 4, 4)
     lead = N.shape[:-2]
     Ne = np.moveaxis(N.reshape((int(np.prod(lead)),) + N.shape[-2:]), 1, 0)  # (n_el, prod(lead), 4)
@@ -432,6 +428,38 @@ def shape_functions(L, xi):
     return N
 
 
+def _shape_derivative(L, xi, order: int) -> np.ndarray:
+    """``d^order N_v / dx^order`` of the transverse shape functions, (n_el, n_pts, 6)."""
+    (L,) = _props(L)
+    xi = np.atleast_1d(np.asarray(xi, dtype=float))
+    Lc = L[:, None]
+    B = np.zeros((L.size, xi.size, 6))
+    H = hermite(xi, order)
+    B[..., 1] = H[0] / Lc**order
+    B[..., 2] = H[1] / Lc**(order - 1)
+    B[..., 4] = H[2] / Lc**order
+    B[..., 5] = H[3] / Lc**(order - 1)
+    return B
+
+
+def shape_slopes(L, xi):
+    """First derivatives ``d N_v / dx`` of the transverse shape functions.
+
+    Parameters
+    ----------
+    L : array_like, shape (n_el,)
+        Element lengths [m].
+    xi : array_like, shape (n_pts,)
+        Fractions of the element length.
+
+    Returns
+    -------
+    S : ndarray, shape (n_el, n_pts, 6)
+        Slope per unit DOF [1/m for translations, 1 for rotations].
+    """
+    return _shape_derivative(L, xi, 1)
+
+
 def shape_curvatures(L, xi):
     """Second derivatives ``d^2 N_v / dx^2`` of the transverse shape functions.
 
@@ -447,13 +475,4 @@ def shape_curvatures(L, xi):
     B : ndarray, shape (n_el, n_pts, 6)
         Curvature per unit DOF [1/m^2 for translations, 1/m for rotations].
     """
-    (L,) = _props(L)
-    xi = np.atleast_1d(np.asarray(xi, dtype=float))
-    Lc = L[:, None]
-    B = np.zeros((L.size, xi.size, 6))
-    H = hermite(xi, 2)
-    B[..., 1] = H[0] / Lc**2
-    B[..., 2] = H[1] / Lc
-    B[..., 4] = H[2] / Lc**2
-    B[..., 5] = H[3] / Lc
-    return B
+    return _shape_derivative(L, xi, 2)

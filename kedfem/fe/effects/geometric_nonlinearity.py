@@ -42,7 +42,7 @@ class GeometricNonlinearity(Effect):
 
     def element_terms(self, asm, chunk: Chunk) -> None:
         # the elastic N is constant on an element; its variation along it under the link's own
-        # inertia and weight is the kinetostatic force's about its mean (a linear term)
+        # inertia is the kinetostatic force's about its mean (a linear term)
         bk = chunk.beam
         if bk is None or "inertia" not in asm.effects:
             return
