@@ -48,15 +48,16 @@ __all__ = ["LOAD_POINTS", "fixed_end_maps", "periodic_rates", "element_loads", "
 LOAD_POINTS = np.array([0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0])
 
 
-@lru_cache(maxsize=1)
 def _lagrange(j: int) -> Polynomial:
     """The Lagrange polynomial of :data:`LOAD_POINTS` that is 1 at the ``j``-th and 0 at the others."""
     others = np.delete(LOAD_POINTS, j)
     return Polynomial.fromroots(others) / np.prod(LOAD_POINTS[j] - others)
 
 
+@lru_cache(maxsize=1)
 def _basis() -> tuple[np.ndarray, np.ndarray]:
-    """Power-series coefficients (4, 7) of the fixed-end moment and force of each Lagrange load."""
+    """Power-series coefficients (4, 7) of the fixed-end moment and force of each Lagrange load
+    (read-only; computed once)."""
     cm = np.zeros((LOAD_POINTS.size, 7))
     cn = np.zeros((LOAD_POINTS.size, 7))
 
@@ -76,6 +77,7 @@ def _basis() -> tuple[np.ndarray, np.ndarray]:
         Q1 = lj.integ(1)
         c = (Polynomial([integral(Q1)]) - Q1).coef
         cn[j, :c.size] = c
+    cm.flags.writeable = cn.flags.writeable = False
     return cm, cn
 
 

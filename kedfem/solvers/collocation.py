@@ -57,6 +57,7 @@ import scipy.linalg as sla
 
 from ..errors import InputError
 from . import collocation_residual as _residual
+from .batched_lu import lu_solve_stack
 from .collocation_elements import _Elements
 from .collocation_residual import apply_at_instants, kinematic_defect, residual, stiffly_accurate
 from .cyclic import solve_cyclic
@@ -277,7 +278,7 @@ class Resolver:
                     da = sla.lu_solve(el._inv[0], rhs.transpose(1, 0, 2).reshape(s * N, -1),
                                       check_finite=False).reshape(s * N, L, 2 * q).transpose(1, 0, 2)
                 else:
-                    da = sla.lu_solve(el._lu[(a, b)], rhs, check_finite=False)
+                    da = lu_solve_stack(el._lu[(a, b)], rhs)
                 da = da.reshape(L, s, N, 2 * q)
                 du = (h * h)[:, None, None] * np.einsum("j,kjnq->knq", tab.bA, da)
                 dv = h[:, None, None] * np.einsum("j,kjnq->knq", tab.b, da)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg as sla
 
+from .batched_lu import lu_factor_stack, lu_solve_stack
 from .parallel import _run_parallel, _split
 from .state_space import _check_mass
 from .tableaux import Tableau
@@ -149,11 +150,9 @@ class _Elements:
                 rhs[..., 2 * N] = Q[lo:hi]
                 rhs = rhs.reshape(hi - lo, s * N, 2 * N + 1)
                 if keep_lu:  # the same LAPACK factorisation as solve's, kept
-                    lu, piv = sla.lu_factor(W, overwrite_a=True, check_finite=False)
-                    if np.any(np.diagonal(lu, axis1=-2, axis2=-1) == 0.0):
-                        raise np.linalg.LinAlgError("Singular matrix")
+                    lu, piv = lu_factor_stack(W)
                     lus[lo:hi], pivs[lo:hi] = lu, piv
-                    X[lo:hi] = sla.lu_solve((lu, piv), rhs, check_finite=False)
+                    X[lo:hi] = lu_solve_stack((lu, piv), rhs)
                 else:
                     X[lo:hi] = np.linalg.solve(W, rhs)
 
@@ -191,8 +190,7 @@ class _Elements:
         if self.invariant:
             Xq = sla.lu_solve(self._inv[0], q.T, check_finite=False).T
         else:
-            lu, piv = self._lu[(a, b)]
-            Xq = sla.lu_solve((lu, piv), q[..., None], check_finite=False)[..., 0]
+            Xq = lu_solve_stack(self._lu[(a, b)], q[..., None])[..., 0]
         h = self.h[a:b]
         Y = np.matmul(np.stack([tab.bA, tab.b]), Xq.reshape(L, s, N))  # (L, 2, N)
         p = np.concatenate([(h * h)[:, None] * Y[:, 0], h[:, None] * Y[:, 1]], axis=1)
