@@ -247,3 +247,63 @@ def test_a_level_reached_by_continuation_keeps_its_elements_snapped_to_the_kinks
     assert seen and res.error.met
     for want, got, converged in seen:
         assert converged and want is not None and got is not None and np.array_equal(want, got)
+
+
+def test_a_continuation_in_speed_reports_its_progress_and_the_time_left(monkeypatch):
+    """The continuation a solve falls back on reports each speed it reaches (to the solve's progress
+    bar, with the seconds left at its pace so far), from its start up to the target."""
+    from kedfem.analysis import homotopy
+    calls = []
+    orig = homotopy.ContinuationProgress.__call__
+
+    def record(self, lam, start, steps):
+        orig(self, lam, start, steps)
+        calls.append((abs(lam), abs(start), steps, self.left, self.target))
+
+    monkeypatch.setattr(homotopy.ContinuationProgress, "__call__", record)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = kf.solve(scene(350, steps=24, estimate=False))
+    assert "continuation in speed" in res.path, res.path
+    assert len(calls) >= 3
+    lams = [c[0] for c in calls]
+    assert calls[0][0] == calls[0][1] and calls[0][2] == 0  # the start first
+    assert all(b >= a for a, b in zip(lams, lams[1:]))  # (no fold on this branch)
+    assert math.isclose(lams[-1], 350 * RPM, rel_tol=1e-12) and calls[-1][4] == lams[-1]
+    assert all(c[3] is not None and c[3] >= 0 for c in calls[1:])
+
+
+def test_the_continuation_forecast_is_the_pace_so_far_times_the_speed_left(monkeypatch):
+    """``ContinuationProgress``: seconds left = seconds since the start was found x speed still to
+    cover / speed covered; shown on the bar; logged once, at the third step, when long."""
+    from kedfem.analysis import homotopy
+    clock = iter([100.0, 104.0, 108.0, 112.0])
+    monkeypatch.setattr(homotopy.time, "perf_counter", lambda: next(clock))
+
+    class Bar:
+        text = ""
+
+        def set_postfix_str(self, s, refresh=True):
+            self.text = s
+
+    bar = Bar()
+    p = homotopy.ContinuationProgress("m", 100.0, 48, bar)
+    p(20.0, 20.0, 0)
+    assert p.left is None and "48 time elements" in bar.text
+    p(22.0, 20.0, 1)  # 2 rad/s in 4 s: 78 rad/s left take 156 s
+    assert math.isclose(p.left, 156.0) and "about 156 s left" in bar.text and "1 step," in bar.text
+    p(30.0, 20.0, 2)  # 10 rad/s in 8 s: 70 left, 56 s
+    assert math.isclose(p.left, 56.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        import logging
+        records = []
+        handler = logging.Handler()
+        handler.emit = records.append
+        logging.getLogger("kedfem.analysis.pipeline").addHandler(handler)
+        try:
+            p(40.0, 20.0, 3)  # 20 in 12 s: 60 left, 36 s (> LONG_CONTINUATION): said once
+        finally:
+            logging.getLogger("kedfem.analysis.pipeline").removeHandler(handler)
+    assert math.isclose(p.left, 36.0)
+    assert len(records) == 1 and "about 36 s more" in records[0].getMessage()

@@ -506,7 +506,7 @@ def in_unit(value: float, unit: tuple = (1.0, ""), digits: int = 6) -> str:
 
 def reach(family: Family, target: float, *, eps: float, lowest: float | None = None,
           max_steps: int = MAX_POINTS, unit: tuple = (1.0, ""), max_solves: int = MAX_SOLVES,
-          start: tuple | None = None) -> Reached:
+          start: tuple | None = None, progress=None) -> Reached:
     """The response at ``target`` by continuation from a parameter value where Newton's method
     converges from the linear response, or from a given start.
 
@@ -537,6 +537,10 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
     start : (float, ndarray), optional
         A parameter value below ``target`` and a packed response there (:meth:`Family.pack`),
         e.g. a result the user passed as a start: tried first.
+    progress : callable, optional
+        ``progress(lam, start, steps)``, called when the continuation has found its start
+        (``lam = start``) and after each point it reaches on its way (``lam``: the parameter
+        value reached, ``start``: where it started, ``steps``: the steps taken so far).
 
     Returns
     -------
@@ -588,6 +592,8 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
     step = 0.1 * abs(start.lam)
     folds: list[float] = []
     steps = 0
+    if progress is not None:
+        progress(start.lam, start.lam, steps)
     while abs(pts[-1].lam) < abs(target) * (1 - 1e-12) and steps < max_steps and not spent():
         steps += 1
         new = sign * min(abs(target), abs(pts[-1].lam) + step)
@@ -598,6 +604,8 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
         if x is not None:
             pts.append(Point(new, x, np.asarray(out.discrete.floquet_multipliers), discrete=out.discrete))
             step *= 1.5 if out.iterations <= 7 else (1.0 if out.iterations <= 11 else 0.7)
+            if progress is not None:
+                progress(new, start.lam, steps)
             continue
         step *= 0.5
         if step >= 1e-3 * abs(pts[-1].lam):
@@ -610,6 +618,8 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
             break
         pts.extend(found)
         step = 0.02 * abs(pts[-1].lam)
+        if progress is not None:
+            progress(pts[-1].lam, start.lam, steps)
     last = pts[-1]
     if abs(last.lam - target) > 1e-12 * abs(target):
         why = f" (its budget of {max_solves} linear solves spent)" if spent() else ""

@@ -17,6 +17,59 @@ from ..units import RPM_PER_RAD_S
 log = logging.getLogger("kedfem.analysis.pipeline")
 
 
+#: a continuation forecast to take longer than this [s] says so in the log (once)
+LONG_CONTINUATION = 10.0
+
+
+class ContinuationProgress:
+    """What a solve's continuation in speed has done and how long the rest will likely take.
+
+    Called by :func:`kedfem.analysis.branch.reach` after each point: the speed reached, the
+    steps taken, and the seconds left at the pace since the start was found (the speed still to
+    cover times the seconds per rad/s so far: the step grows on an easy branch, so this errs
+    long). Shown on the solve's progress bar; logged once, at the third step, when above
+    :data:`LONG_CONTINUATION`.
+
+    Parameters
+    ----------
+    name : str
+        The mechanism's name (for the log).
+    target : float
+        Speed to reach [rad/s].
+    n : int
+        Time elements of the level.
+    bar : tqdm or None
+        The solve's progress bar.
+    """
+
+    def __init__(self, name: str, target: float, n: int, bar=None):
+        self.name, self.target, self.n, self.bar = name, abs(target), n, bar
+        self.t_start = None  # when the start was found
+        self.left = None     # seconds left, as last forecast
+        self._said = False
+
+    def __call__(self, lam: float, start: float, steps: int) -> None:
+        now = time.perf_counter()
+        lam, start = abs(lam), abs(start)
+        if self.t_start is None:
+            self.t_start = now
+        covered, rest = lam - start, self.target - lam
+        self.left = (now - self.t_start) * rest / covered if covered > 0 else None
+        rpm = RPM_PER_RAD_S
+        text = f"{self.n} time elements, continuation in speed {lam * rpm:.4g} of {self.target * rpm:.4g} rpm"
+        if steps:
+            text += f", {steps} step{'s' if steps > 1 else ''}"
+        if self.left is not None and rest > 0:
+            text += f", about {self.left:.0f} s left"
+        if self.bar is not None:
+            self.bar.set_postfix_str(text, refresh=True)
+        if steps == 3 and not self._said and self.left is not None and self.left > LONG_CONTINUATION:
+            self._said = True
+            log.warning("%s: the continuation in speed reached %.4g of %.4g rpm in %d steps (%.0f s): about "
+                        "%.0f s more at this pace", self.name, lam * rpm, self.target * rpm, steps,
+                        now - self.t_start, self.left)
+
+
 def phase_sample(discrete, t, period: float):
     """A discrete solution read at instants ``t`` of a cycle ``period`` long, at the same fractions
     of its own cycle (velocities rescaled to the new cycle): a response at another speed as a
@@ -62,7 +115,8 @@ class Homotopy:
                 p0 = fam.problem(w0)
                 given = (w0, fam.pack(*phase_sample(self.start.sampler.discrete, p0.instants, p0.period), w0))
             try:
-                r = reach(fam, w, eps=eps, unit=(RPM_PER_RAD_S, "rpm"), start=given)
+                r = reach(fam, w, eps=eps, unit=(RPM_PER_RAD_S, "rpm"), start=given,
+                          progress=ContinuationProgress(sc.mech.name, w, prob.n, self._bar))
             except NonlinearSolveError as e:
                 self.path = (f"Newton's method from {origin} did not converge; " + str(e))
                 self.highest = e.highest
