@@ -34,7 +34,6 @@ from functools import lru_cache
 import numpy as np
 
 from ..errors import InputError
-from ..fe.assembler import Assembler
 from ..fe.effects.springs import spring_extension
 from ..fe.effects.loads import rigid_friction
 from ..fe.structure import spring_axes
@@ -365,7 +364,7 @@ def machine_loads(result, elastic: bool = True) -> MachineLoads:
     The method and the sign conventions are in docs/loads.md.
     """
     mech, mo = result.model.mech, result.motion
-    asm = Assembler(result.model, mo, result.scene.effects)
+    asm = result._assembler()
     rigid = asm.joint_forces()
     forces = _elastic_forces(result, asm) if elastic else None
     return loads_from_forces(mech, mo, rigid, forces)
@@ -579,7 +578,7 @@ def contact_forces(result) -> dict:
     slotted = frozenset(j.on for j in mech.joints.values() if j.kind == "slot")
     if not slotted:
         return {}
-    asm = Assembler(result.model, result.motion, result.scene.effects)
+    asm = result._assembler()
     known = _elastic_known(result, asm, skip=slotted)
     loads, moments = _elastic_loads(result, asm)
     out = kinetostatics(mech, result.motion, inertia="inertia" in asm.effects, gravity=asm.weight,

@@ -402,6 +402,17 @@ class PeriodicResult(Displacements, SectionForces, BlockForces, PeakRefinement):
         output grid (its levels, for the estimate), else the result's own."""
         return self._cache.get("grid", self._cache)
 
+    def _assembler(self):
+        """An :class:`~kedfem.fe.assembler.Assembler` of the scene's effects over this result's
+        motion, for what the read-out needs of it (the kinetostatic forces, the constraint maps
+        and entity forms of the elastic loads; all of the motion only), built once per output grid."""
+        cache = self._motion_cache()
+        asm = cache.get("assembler")
+        if asm is None:
+            from ..fe.assembler import Assembler
+            asm = cache["assembler"] = Assembler(self.model, self.motion, self.scene.effects)
+        return asm
+
     def _beam_map(self):
         """Constraint map of the beam elements over the cycle (built once per output grid)."""
         cache = self._motion_cache()

@@ -10,7 +10,6 @@ import logging
 
 import numpy as np
 
-from ..fe.assembler import Assembler
 from ..model import elements as el
 from ..motion.kinetostatics import link_axial_force, link_axial_force_at
 from . import recovery
@@ -192,7 +191,7 @@ class SectionForces:
         key = ("kinetostatic axial force", lk.name, elastic)
         if key not in cache:
             if ("kinetostatic forces",) not in cache:
-                asm = Assembler(self.model, self.motion, self.scene.effects)
+                asm = self._assembler()
                 cache[("kinetostatic forces",)] = (asm.joint_forces(), asm.weight)
             forces, weight = cache[("kinetostatic forces",)]
             s1 = np.asarray(np.arange(lk.elements) * Le if np.ndim(Le) == 0 else lk.nodes[:-1], float)
