@@ -538,6 +538,27 @@ class Assembler:
             gm = self._full_maps[gname] = self.model.group_map(gname, mo, self._full_forms)
         return gm
 
+    def local_beam_map(self, mo):
+        """The beam elements' map from the unknowns to their local DOFs over ``mo`` (kept when
+        ``mo`` is the whole cycle, as :meth:`_state_map`): ``d = T (E q + p) = A q + T p``.
+
+        Returns ``(A, Tp, T, gm)``: ``A = T E`` as a :class:`~kedfem.fe.maps.GroupMap` of the
+        group's layout (its ``E`` the product, no derivatives or offsets), ``T p`` (nt, n_el, 6)
+        or None, the rotations ``T`` (nt, n_el, 6, 6) and the group map ``gm`` itself. The
+        state terms of every iterate map through the product once instead of through ``E`` and
+        ``T`` in turn (two products of small matrices fewer each way).
+        """
+        if mo is self.motion and getattr(self, "_local_beam", None) is not None:
+            return self._local_beam
+        gm = self._state_map("beam", mo)
+        T = el.rotation_blocks(mo.theta[:, self.beam_member])
+        A = GroupMap(gm.cols, T @ gm.E, None, None, None, None, None)
+        Tp = (T @ gm.p[..., None])[..., 0] if gm.p is not None else None
+        out = (A, Tp, T, gm)
+        if mo is self.motion:
+            self._local_beam = out
+        return out
+
     def element_state(self, gname, mo, U, V=None):
         """Element DOFs of a group for the trial response ``U, V``.
 

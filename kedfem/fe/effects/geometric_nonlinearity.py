@@ -54,10 +54,9 @@ class GeometricNonlinearity(Effect):
         b = asm.model.beam
         if not b.L.size:
             return
-        x, _xd, xq, gm = asm.element_state("beam", motion, U)
-        T = el.rotation_blocks(motion.theta[:, asm.beam_member])
-        d = (T @ x[..., None])[..., 0]  # local element DOFs (nt, n_el, 6), total
-        dq = (T @ xq[..., None])[..., 0]  # the part carried by the unknowns
+        A, Tp, T, gm = asm.local_beam_map(motion)  # d = T (E q + p) = A q + T p
+        dq = A.apply(U)  # local element DOFs (nt, n_el, 6) the unknowns carry
+        d = dq + Tp if Tp is not None else dq  # total
         G = el.geometric_matrix(b.L)    # (n_el, 4, 4)
         Gv = (G @ d[..., el.V_DOFS, None])[..., 0]
         N_nl = b.EA * np.einsum("tni,tni->tn", d[..., el.V_DOFS], Gv) / (2.0 * b.L)
@@ -78,10 +77,9 @@ class GeometricNonlinearity(Effect):
         # linearisation about x_i with the prescribed part p fixed:
         # K_T (E q + p - x_i) + f_int(x_i) = Q  ->  Q_state = -f_nl(x_i) + K_nl (x_i - p)
         Qloc = -fnl + (Knl @ dq[..., None])[..., 0]
-        Tt = np.swapaxes(T, -1, -2)
-        asm.apply_state("beam", gm, Tt @ Knl @ T, (Tt @ Qloc[..., None])[..., 0], out.dK, out.dQ)
+        asm.apply_state("beam", A, Knl, Qloc, out.dK, out.dQ)  # A^T Knl A, A^T Qloc
         if asm.objective_beta():
-            _strain_rate_damping(asm, motion, T, Tt, D, gm, out)
+            _strain_rate_damping(asm, motion, T, np.swapaxes(T, -1, -2), D, gm, out)
 
 
 def _strain_rate_damping(asm, mo, T, Tt, D, gm, out: StateTerms) -> None:
