@@ -106,3 +106,16 @@ def did_you_mean(word, choices) -> str:
     import difflib
     m = difflib.get_close_matches(str(word), [str(c) for c in choices], n=1, cutoff=0.6)
     return f" (did you mean '{m[0]}'?)" if m else ""
+
+
+def user_stacklevel() -> int:
+    """``stacklevel`` for the ``warnings.warn`` call it is an argument of: the first frame outside
+    kedfem, so that the warning names the user's line however deep in a solve it is raised (a new
+    user's ``PlausibilityWarning`` pointed at ``kedfem/analysis/pipeline.py:485``)."""
+    import os
+    import sys
+    pkg = os.path.dirname(os.path.abspath(__file__)) + os.sep
+    frame, level = sys._getframe(1), 1  # the frame that calls warnings.warn
+    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(pkg):
+        frame, level = frame.f_back, level + 1
+    return level

@@ -302,8 +302,64 @@ def test_the_continuation_forecast_is_the_pace_so_far_times_the_speed_left(monke
         handler.emit = records.append
         logging.getLogger("kedfem.analysis.pipeline").addHandler(handler)
         try:
-            p(40.0, 20.0, 3)  # 20 in 12 s: 60 left, 36 s (> LONG_CONTINUATION): said once
+            p(40.0, 20.0, 4)  # 20 in 12 s: 60 left, 36 s (> LONG_CONTINUATION): said once (the third
+            # step failed and was shortened: the fourth is the first call past the third)
         finally:
             logging.getLogger("kedfem.analysis.pipeline").removeHandler(handler)
     assert math.isclose(p.left, 36.0)
     assert len(records) == 1 and "about 36 s more" in records[0].getMessage()
+
+
+def _strip_crank_rocker(rpm):
+    """A new user's crank-rocker (not in the catalogue): rigid crank, a thin steel strip coupler
+    and a tube rocker, 4 elements each, 0.1 kg at the coupler-rocker pin."""
+    steel = kf.Material(E=2.1e11, rho=7850.0, yield_strength=350e6)
+    m = kf.Mechanism("strip crank-rocker")
+    m.ground("O2", (0.0, 0.0))
+    m.ground("O4", (0.23, 0.0))
+    m.joint("A", m.at_angle("O2", 0.06, 0.0))
+    m.joint("B", m.at_lengths(("A", 0.25, "coupler"), ("O4", 0.18, "rocker"), branch="open"))
+    m.link("crank", "O2", "A", rigid=True, mass=0.15, length=0.06)
+    m.link("coupler", "A", "B", material=steel, section=kf.Section.rectangle(0.020, 0.003), elements=4,
+           length=0.25)
+    m.link("rocker", "O4", "B", material=steel, section=kf.Section.tube(0.016, 0.0015), elements=4, length=0.18)
+    m.point_mass("B", 0.1)
+    m.drive("crank", speed=rpm * RPM)
+    return kf.Scene(m, effects=("inertia", "coupling", "geometric_nonlinearity"), damping=kf.ModalDamping(0.02),
+                    steps=48, estimate=False)
+
+
+def test_the_mesh_check_of_a_non_linear_result_starts_from_it(monkeypatch):
+    """The mesh check's comparison solve (half the elements per link) of a result reached by
+    continuation in speed starts from the result on the nodes both meshes share: no continuation of
+    its own (a new user's took longer than the solve and logged a second fallback warning), and the
+    same comparison peaks as the comparison model's solve from the linear response, which there
+    falls back on the continuation too. (Closer to its limit, at 350 rpm, Newton from the
+    four-bar preset's result on two elements per link does not converge either, and the check
+    falls back on the continuation as the solve did.)"""
+    from kedfem.analysis import mesh_check, pipeline
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = kf.solve(_strip_crank_rocker(2250))
+        assert "continuation in speed" in res.path
+        calls = []
+        orig = pipeline._Run.homotopy
+
+        def homotopy(self, *a, **k):
+            calls.append(self.scene.mech.name)
+            return orig(self, *a, **k)
+
+        monkeypatch.setattr(pipeline._Run, "homotopy", homotopy)
+        est = kf.mesh_error(res)
+        assert not calls
+        coarse = mesh_check.comparison_mesh(res.scene.mechanism)
+        import dataclasses
+        cold = kf.solve(dataclasses.replace(res.scene, mechanism=coarse))
+        assert calls  # from the linear response the comparison model needs the continuation
+    fine = {p.link: p for p in res.peaks()}
+    for p in cold.peaks():
+        e = est.link(p.link)
+        lk = res.scene.mechanism.links[p.link]
+        div = 1.0 - (lk.elements / coarse.links[p.link].elements) ** e.rate
+        want = abs(fine[p.link].deflection - p.deflection) / fine[p.link].deflection / abs(div)
+        assert math.isclose(e.deflection, want, rel_tol=1e-3, abs_tol=1e-9), (p.link, e.deflection, want)

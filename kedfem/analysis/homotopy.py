@@ -27,8 +27,8 @@ class ContinuationProgress:
     Called by :func:`kedfem.analysis.branch.reach` after each point: the speed reached, the
     steps taken, and the seconds left at the pace since the start was found (the speed still to
     cover times the seconds per rad/s so far: the step grows on an easy branch, so this errs
-    long). Shown on the solve's progress bar; logged once, at the third step, when above
-    :data:`LONG_CONTINUATION`.
+    long). Shown on the solve's progress bar; logged once, from the third step on (steps that
+    failed and were shortened count), when above :data:`LONG_CONTINUATION`.
 
     Parameters
     ----------
@@ -63,7 +63,7 @@ class ContinuationProgress:
             text += f", about {self.left:.0f} s left"
         if self.bar is not None:
             self.bar.set_postfix_str(text, refresh=True)
-        if steps == 3 and not self._said and self.left is not None and self.left > LONG_CONTINUATION:
+        if steps >= 3 and not self._said and self.left is not None and self.left > LONG_CONTINUATION:
             self._said = True
             log.warning("%s: the continuation in speed reached %.4g of %.4g rpm in %d steps (%.0f s): about "
                         "%.0f s more at this pace", self.name, lam * rpm, self.target * rpm, steps,
@@ -98,8 +98,10 @@ class Homotopy:
         sc = self.scene
         w = sc.mech.drives[0].speed
         log.warning("%s: Newton from %s did not converge at %.4g rpm on %d time elements: continuation in "
-                    "speed (each step a Newton solve on %d elements; tens of steps can take minutes)",
-                    sc.mech.name, origin, abs(w) * RPM_PER_RAD_S, prob.n, prob.n)
+                    "speed (each step a Newton solve on %d elements; tens of steps can take minutes%s)",
+                    sc.mech.name, origin, abs(w) * RPM_PER_RAD_S, prob.n, prob.n,
+                    "" if self.start is not None else
+                    "; a result at a nearby speed, kf.solve(scene, start=result), starts there instead")
         if self._bar is not None:
             self._bar.set_postfix_str(f"{prob.n} time elements, continuation in speed", refresh=True)
         fam = Family(lambda s: dataclasses.replace(sc, speed=s), prob.n, self.scheme)

@@ -34,6 +34,7 @@ import copy
 import dataclasses
 import logging
 import math
+import re
 import warnings
 from dataclasses import dataclass
 
@@ -141,7 +142,9 @@ def mesh_error(res, factor: int = 2) -> MeshError | None:
     res : PeriodicResult
         A result of :func:`kedfem.solve`.
     factor : int
-        Elements per link of the comparison mesh (:func:`comparison_mesh`).
+        How many times coarser (or finer) the comparison mesh is: ``e // factor`` elements on a
+        link of ``e`` where that leaves at least two, else ``e * factor``
+        (:func:`comparison_mesh`; default 2, half the elements).
 
     Returns
     -------
@@ -149,8 +152,9 @@ def mesh_error(res, factor: int = 2) -> MeshError | None:
         None when the mechanism has no flexible link, or when the comparison
         model cannot be built or solved (logged).
     """
-    from .pipeline import solve
+    from .pipeline import _Run, solve
     from .results import PeriodicResult
+    from ..solvers.threads import one_blas_thread
     if not isinstance(res, PeriodicResult):
         raise InputError(f"mesh_error: res must be a result of kedfem.solve, got {type(res).__name__}")
     if isinstance(factor, bool) or not isinstance(factor, int) or not 2 <= factor <= 8:
@@ -163,10 +167,15 @@ def mesh_error(res, factor: int = 2) -> MeshError | None:
     coarse = comparison_mesh(mech, factor)
     sc = dataclasses.replace(scene, mechanism=coarse, steps=int(res.elements), method=res.scheme or "auto",
                              hold=None, estimate=False)
+    start = _restricted_start(res, coarse, sc)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            rc = solve(sc)
+            if start is None:
+                rc = solve(sc)
+            else:  # a non-linear scene's iteration starts from the result on the shared nodes
+                with one_blas_thread():
+                    rc = _Run(sc, start=start).run()
     except KedError as exc:
         log.warning("%s: no mesh error estimate (the comparison model failed: %s)", mech.name, exc)
         return None
@@ -187,3 +196,59 @@ def mesh_error(res, factor: int = 2) -> MeshError | None:
 
         out.append(LinkMeshError(p.link, e, ec, rel(f.deflection, p.deflection), rel(f.stress, p.stress), rate))
     return MeshError(tuple(out), MESH_RATE)
+
+
+class _RestrictedDiscrete:
+    """A solution's dense output read on a subset of its DOFs (the interface
+    :func:`kedfem.analysis.homotopy.phase_sample` reads: ``period`` and ``at``)."""
+
+    def __init__(self, discrete, idx):
+        self._d, self._idx = discrete, idx
+        self.period = discrete.period
+
+    def at(self, t):
+        U, V = self._d.at(t)
+        return U[:, self._idx], V[:, self._idx]
+
+
+@dataclass(frozen=True)
+class _RestrictedStart:
+    """A result as the start of a solve on another mesh of its mechanism (what ``_Run`` reads of a
+    start: its sampler's discrete solution and its model's drive)."""
+
+    model: object
+    sampler: object
+
+
+def _restricted_start(res, coarse, scene):
+    """``res`` read on the DOFs of ``coarse`` (the same joints and the nodes both meshes share),
+    as the start of the comparison solve of a non-linear scene: Newton from the linear response
+    fell back on the continuation in speed there as on the result's own solve (a new user's
+    crank-rocker at 2250 rpm: 3.5 s, and a second warning that read as the solve restarting).
+    None where the scene is linear, the result has no dense output, or a DOF of the coarse mesh
+    has no counterpart (a refined link's new nodes, a reduced link's modal coordinates)."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from ..fe.model import FEModel
+    if res.sampler is None or not res.scene.state_dependent:
+        return None
+    fine_mech = res.scene.mechanism
+    pos = {lab: i for i, lab in enumerate(res.dof_labels)}
+    idx = []
+    for lab in FEModel(coarse, reduction=scene.reduction).dof_labels:
+        m = re.fullmatch(r"(.+)\.n(\d+)\.(\w+)", lab)
+        if m is not None and m.group(1) in coarse.links:
+            name, j, comp = m.group(1), int(m.group(2)), m.group(3)
+            x, nodes = coarse.links[name].nodes[j], fine_mech.links[name].nodes
+            at = np.flatnonzero(np.abs(nodes - x) <= 1e-9 * fine_mech.links[name].length)
+            if at.size != 1:
+                return None
+            lab = f"{name}.n{int(at[0])}.{comp}"
+        k = pos.get(lab)
+        if k is None:
+            return None
+        idx.append(k)
+    return _RestrictedStart(res.model, SimpleNamespace(discrete=_RestrictedDiscrete(res.sampler.discrete,
+                                                                                   np.array(idx))))

@@ -23,7 +23,7 @@ from ..fe.assembler import Assembler
 from ..fe.effects import check_effects
 from ..solvers.eigen import generalised_eigh
 from ..checks import flag, integer, real
-from ..errors import InputError
+from ..errors import InputError, user_stacklevel
 from ..motion.kinematics import Motion, kinematics, kinematics_at, static_motion
 from ..model.mechanism import Mechanism, require_mechanism
 
@@ -211,7 +211,7 @@ def natural_frequencies(mechanism: Mechanism, crank_angle: float = 0.0, n_modes:
     f, phi = (out if modes else (out, None))
     if np.any(f < 0):
         warnings.warn(f"{mechanism.name}: a negative stiffness eigenvalue (buckling or instability) "
-                      "appears: its frequency is reported as negative", RuntimeWarning, stacklevel=2)
+                      "appears: its frequency is reported as negative", RuntimeWarning, stacklevel=user_stacklevel())
     if steps is None:
         f = f[0]
         phi = phi[0] if phi is not None else None

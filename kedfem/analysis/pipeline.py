@@ -36,7 +36,7 @@ from . import accuracy
 from ..solvers import schemes
 from ..fe.model import FEModel
 from ..fe.assembler import Assembler
-from ..errors import AccuracyWarning, EffectWarning, InputError
+from ..errors import AccuracyWarning, EffectWarning, InputError, user_stacklevel
 from ..motion.kinematics import Cycle, kinematics
 from ..fe.modal_damping import DampingField, PiecewiseDampingField
 from ..fe.slots import node_crossings
@@ -401,9 +401,11 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
             tried = (f"the {sc.nonlinear_method} iteration on {'/'.join(str(lv.n) for lv in self.levels)} "
                      "time elements (and Anderson acceleration)")
             what = f"it did not converge within max_iter = {sc.max_iter} linear solves"
-        highest = (f"; this attempt's continuation got as far as {self.highest * rpm:.6g} rpm (the response may "
-                   "exist higher: the steps start from a fraction of the scene's speed)"
-                   if self.highest is not None else "")
+        highest = ""
+        if self.highest is not None:  # the path names the speed the continuation stalled at
+            said = f"{self.highest * rpm:.6g} rpm" in what
+            highest = (f"; {'' if said else f'it got as far as {self.highest * rpm:.6g} rpm; '}the response may "
+                       "exist higher (the steps start from a fraction of the scene's speed)")
         nxt = ("kf.continuation(scene, lo, hi) (kedfem continuation SCENE --speeds LO:HI) follows the response "
                "over speed and says where it ends or loses its stability")
         if sc.nonlinear_method != "newton":
@@ -494,10 +496,10 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
         if "loads" in eff:
             for msg in idle_loads(mech, self.cycle):
                 log.info(msg)
-                warnings.warn(msg, EffectWarning, stacklevel=4)
+                warnings.warn(msg, EffectWarning, stacklevel=user_stacklevel())
         for msg in unsimulated(mech, self.scene.effects):
             log.info(msg)
-            warnings.warn(msg, EffectWarning, stacklevel=4)
+            warnings.warn(msg, EffectWarning, stacklevel=user_stacklevel())
 
     def _run(self) -> PeriodicResult:
         self._unsimulated()
@@ -526,7 +528,7 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
                     msg = (f"{sc.mech.name}: no error estimate: {n} time elements (steps given) have no coarser "
                            f"level of {scheme.name} to compare with (the estimate needs steps >= "
                            f"{scheme.refine(scheme.min_elements)}); leave steps out to meet rtol")
-                    warnings.warn(msg, AccuracyWarning, stacklevel=3)
+                    warnings.warn(msg, AccuracyWarning, stacklevel=user_stacklevel())
         else:
             # double from a start whose second level resolves the relevant modes; the
             # estimate needs three levels (an observed rate) before it is believed
@@ -642,7 +644,7 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
             else:
                 why = (f"estimated error of the peaks {est.peak:.1e} cannot be trusted: no "
                        f"convergence rate observed over three levels")
-            warnings.warn(f"{sc.mech.name}: {why}, with {how}", AccuracyWarning, stacklevel=3)
+            warnings.warn(f"{sc.mech.name}: {why}, with {how}", AccuracyWarning, stacklevel=user_stacklevel())
         res = self.result(final, n_out, error=est, stability=self.stability(est))
         object.__setattr__(res, "path", self.path)
         check_result(res)

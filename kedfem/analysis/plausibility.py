@@ -17,7 +17,7 @@ import warnings
 
 import numpy as np
 
-from ..errors import InputError, PlausibilityWarning
+from ..errors import InputError, PlausibilityWarning, user_stacklevel
 
 __all__ = ["MAX_PASSIVE_STRAIN", "MAX_DEFLECTION_RATIO", "check_passive_links", "check_result"]
 
@@ -75,7 +75,7 @@ def check_result(res) -> list[str]:
             out.append(f"link '{p.link}': peak stress {p.stress / 1e6:.4g} MPa exceeds the yield strength "
                        f"{Sy / 1e6:.4g} MPa: the link yields, linear elasticity no longer holds")
     for msg in out:
-        warnings.warn(msg, PlausibilityWarning, stacklevel=3)
+        warnings.warn(msg, PlausibilityWarning, stacklevel=user_stacklevel())
     return out
 
 

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse.linalg as spla
 
-from ..errors import EffectWarning, KedError
+from ..errors import EffectWarning, KedError, user_stacklevel
 from ..fe.assembler import Assembler
 from ..fe.effects import check_effects, unsimulated
 from ..fe.model import FEModel
@@ -190,7 +190,7 @@ def static_response(mechanism: Mechanism, effects=("gravity", "loads"), crank_an
     require_mechanism(mechanism, "static_response")
     eff = check_effects(effects)
     for msg in unsimulated(mechanism, eff):  # a spring's preload or a load the effects leave out
-        warnings.warn(msg, EffectWarning, stacklevel=2)
+        warnings.warn(msg, EffectWarning, stacklevel=user_stacklevel())
     model = FEModel(mechanism)
     motion = _motion_at(mechanism, crank_angle)
     asm = Assembler(model, motion, eff)

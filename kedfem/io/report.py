@@ -140,7 +140,10 @@ def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_di
                    else f"{res.elements} time elements given: no coarser level to compare with")
             L.append(f"  time-discretisation error: not estimated ({why})")
         if mesh is not None:
-            L.append(f"  mesh error (not in the +- columns): {mesh.describe()}")
+            rtol = res.scene.rtol
+            above = (f"; above the tolerance {rtol:.0e}: more elements per link lower it"
+                     if rtol is not None and mesh.peak > rtol else "")
+            L.append(f"  mesh error (not in the +- columns): {mesh.describe()}{above}")
             for e in mesh.links:
                 if e.deflection is not None:
                     st = f", stress {e.stress:.1e}" if e.stress is not None else ""
@@ -177,11 +180,11 @@ def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_di
         L.append("iteration           none needed (linear scene): 1 periodic solve")
     L.append(f"residual            {res.residual:.3e} (relative, block-cyclic system)")
     tm = res.timings
-    parts = [f"kinematics {tm.kinematics:.2f}", f"assembly {tm.assembly:.2f}", f"solve {tm.solve:.2f}"]
+    parts = [f"solve {tm.total:.2f} (kinematics {tm.kinematics:.2f}, assembly {tm.assembly:.2f}, "
+             f"periodic solves {tm.solve:.2f}" + (f"; forecast {tm.forecast:.2f} after its second level)"
+                                                  if tm.forecast is not None else ")")]
     parts += [f"{k} {v:.2f}" for k, v in stages.items()]
-    fc = f" (the solve forecast {tm.forecast:.2f} s of its {tm.total:.2f} s after its second level)" \
-        if tm.forecast is not None else ""
-    L.append(f"wall time [s]       {', '.join(parts)}; total {scene_time:.2f}{fc}")
+    L.append(f"wall time [s]       {', '.join(parts)}; total {scene_time:.2f}")
     if files:
         L.append(f"files in {out_dir}/")
         for f in files:

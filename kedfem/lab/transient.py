@@ -44,7 +44,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.interpolate import CubicSpline
 
-from ..errors import ConvergenceWarning, InputError
+from ..errors import ConvergenceWarning, InputError, user_stacklevel
 
 __all__ = ["TRANSIENT_METHODS", "TransientResult", "integrate_periodic", "integrate_sampled",
            "sampled_system"]
@@ -464,7 +464,7 @@ def _until_periodic(cycle: Cycle, z, N, period, n_out, method, tol, max_cycles, 
         log.info("direct integration (%s): %s", method, msg)
     else:
         msg = f"not periodic after {max_cycles} cycles (defect {defect:.2e} > tol {tol:.1e})"
-        warnings.warn(msg, ConvergenceWarning, stacklevel=3)
+        warnings.warn(msg, ConvergenceWarning, stacklevel=user_stacklevel())
     t = np.arange(n_out) * (period / n_out)
     return TransientResult(t, U, Z[:, N:].copy(), c, defect, periodic, method, msg,
                            counts["nfev"], counts["njev"])

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import networkx as nx
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, user_stacklevel
 from .materials import MAX_LENGTH, Material, Section, flag, names
 from .arguments import _number, _unit, _vec2
 from .components import Body, Drive, Friction, Joint, Link, Load, PointMass, Spring, TorsionalSpring
@@ -287,7 +287,7 @@ class Mechanism(JointBuilder, ConsistencyChecks):
                    f"not the stated length {stated:.9g} m (relative difference {rel:.2g}); the coordinates "
                    "are used (place joints from lengths with Mechanism.at_lengths / at_angle)")
             log.warning(msg)
-            warnings.warn(msg, LengthWarning, stacklevel=3)
+            warnings.warn(msg, LengthWarning, stacklevel=user_stacklevel())
 
     def body(self, name: str, joints, *, mass: float, J: float, cm=None) -> Body:
         """Add a rigid body attached at several joints.

@@ -61,9 +61,15 @@ def lu_solve_stack(factors: tuple[np.ndarray, np.ndarray], B: np.ndarray) -> np.
     Returns
     -------
     ndarray, shape (L, n, k)
+
+    Notes
+    -----
+    SciPy's ``getrs`` wrapper shifts the pivot array in place while it runs: two threads must
+    not solve with the same factors at once (each worker of a collocation solve factorises and
+    solves its own elements; later solves run on one thread).
     """
     lu, piv = factors
-    getrs, = lapack.get_lapack_funcs(("getrs",), (lu,))
+    getrs, = lapack.get_lapack_funcs(("getrs",), (lu, B))
     X = np.empty(B.shape, dtype=np.result_type(lu, B))
     for i in range(lu.shape[0]):
         X[i], _info = getrs(lu[i].T, piv[i], B[i])

@@ -15,7 +15,7 @@ import warnings
 
 import numpy as np
 
-from ..errors import InstabilityWarning, ResonanceError
+from ..errors import InstabilityWarning, ResonanceError, user_stacklevel
 from .balancing import balance
 
 # the records keep the logger they had before the split (issue 27): a filter on it still works
@@ -136,7 +136,7 @@ def _choose_method(method: str, rho: float, ill_conditioned: bool) -> str:
     if unstable:  # stacklevel: the caller of solve_cyclic
         warnings.warn(f"parametric instability: largest Floquet multiplier |mu| = {rho:.6g} > 1; "
                       f"the periodic solution exists but is not attracting (solved by {method})",
-                      InstabilityWarning, stacklevel=3)
+                      InstabilityWarning, stacklevel=user_stacklevel())
     return method
 
 

@@ -38,7 +38,7 @@ from typing import Callable
 import numpy as np
 
 from . import periodic
-from ..errors import ConvergenceWarning, InputError, UnboundedResponseError
+from ..errors import ConvergenceWarning, InputError, UnboundedResponseError, user_stacklevel
 
 __all__ = ["solve", "fixed_point", "newton", "NewtonRate", "NewtonOutcome", "NonlinearResult", "NONLINEAR_METHODS"]
 
@@ -405,7 +405,7 @@ def fixed_point(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter
         message = (f"not converged after {max_iter} linear solves (last change "
                    f"{history[-1]:.2e} > eps {eps:.1e})")
     if not converged:
-        warnings.warn(f"non-linear iteration ({method}): {message}", ConvergenceWarning, stacklevel=3)
+        warnings.warn(f"non-linear iteration ({method}): {message}", ConvergenceWarning, stacklevel=user_stacklevel())
     log.info("non-linear iteration (%s): %s", method, message)
     return sol, history, converged, message
 
@@ -618,7 +618,7 @@ def newton(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter: int
         last = change if lam == 1.0 and not _chord(sol) else None
         x, sol, d, dU, nU, phi = xt, st, dt, dUt, nUt, phit
     if not converged and warn:
-        warnings.warn(f"non-linear iteration (newton): {message}", ConvergenceWarning, stacklevel=3)
+        warnings.warn(f"non-linear iteration (newton): {message}", ConvergenceWarning, stacklevel=user_stacklevel())
     log.info("non-linear iteration (newton): %s", message)
     return NewtonOutcome(sol, history, converged, message, seen, guess)
 
