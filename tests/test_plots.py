@@ -51,16 +51,16 @@ def test_result_plots(res, tmp_path, figures):
     disp, link, freq, flo = figures
     crank = "crank angle [deg] ('crank', absolute)"  # the convention named: a driven link's own angle
     assert labels(disp)[0] == (crank, "elastic displacement [m]")
-    assert labels(link) == [(crank, "mid-span deflection [m]"),
-                            (crank, "max. normal stress along link [Pa]")]
+    assert labels(link) == [(crank, "mid-span deflection [mm]"),
+                            (crank, "max. normal stress along link [MPa]")]
     assert labels(freq) == [(crank, "natural frequency [Hz]")]
     assert labels(flo) == [("Re(mu) [-]", "Im(mu) [-]")]
     # the drawn data are the result's
     line = link.axes[0].lines[0]
     w = res.deflection("rod", 0.5, relative_to="chord")
-    np.testing.assert_array_equal(line.get_ydata(), np.append(w, w[0]))      # closed over the cycle
+    np.testing.assert_array_equal(line.get_ydata(), 1e3 * np.append(w, w[0]))      # closed over the cycle
     s = res.stress("rod").max(axis=1)
-    np.testing.assert_array_equal(link.axes[1].lines[0].get_ydata(), np.append(s, s[0]))
+    np.testing.assert_array_equal(link.axes[1].lines[0].get_ydata(), 1e-6 * np.append(s, s[0]))
     x = line.get_xdata()
     assert x[0] == 0 and x[-1] == 360 and np.all(np.diff(x) > 0)
     np.testing.assert_allclose(x[:-1], np.degrees(res.crank_angle - res.crank_angle[0]) % 360, atol=1e-9)

@@ -152,14 +152,15 @@ def link_response(res, path, links: Sequence[str] | None = None) -> Path:
         stretches = mech.links[lk].stretches
         d = res.stretch_deflections(lk)
         for k, (ja, jb) in enumerate(stretches):  # a link through joints: each stretch from its chord
-            axes[0, 0].plot(x, _closed(d[:, k], order), label=lk if len(stretches) == 1 else f"{lk} {ja}-{jb}")
+            axes[0, 0].plot(x, _closed(1e3 * d[:, k], order), label=lk if len(stretches) == 1 else f"{lk} {ja}-{jb}")
         if mech.links[lk].section.c is not None:
-            axes[1, 0].plot(x, _closed(res.stress(lk).max(axis=1), order), label=lk)
+            axes[1, 0].plot(x, _closed(1e-6 * res.stress(lk).max(axis=1), order), label=lk)
             any_stress = True
-    axes[0, 0].set_ylabel("mid-span deflection [m]")
+    # in the summary's units (a new user read metres and pascals beside its mm and MPa)
+    axes[0, 0].set_ylabel("mid-span deflection [mm]")
     axes[0, 0].set_title(f"{_title(res)}: link deflection and dynamic stress")
     axes[0, 0].legend(fontsize="small")
-    axes[1, 0].set_ylabel("max. normal stress along link [Pa]")
+    axes[1, 0].set_ylabel("max. normal stress along link [MPa]")
     if any_stress:
         axes[1, 0].legend(fontsize="small")
     else:
