@@ -3,13 +3,18 @@ branch; pushed from 100 to 600 rpm, every kf.solve ends in a converged response 
 from its own orbit, or in a named NonlinearSolveError, never in the numbers of a diverged iterate."""
 
 import math
+import sys
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 import kedfem as kf
 from kedfem.catalogue import info
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from linkages import strip_crank_rocker  # noqa: E402  (a new user's linkage, not in the catalogue)
 
 RPM = 2 * math.pi / 60
 
@@ -311,22 +316,10 @@ def test_the_continuation_forecast_is_the_pace_so_far_times_the_speed_left(monke
 
 
 def _strip_crank_rocker(rpm):
-    """A new user's crank-rocker (not in the catalogue): rigid crank, a thin steel strip coupler
-    and a tube rocker, 4 elements each, 0.1 kg at the coupler-rocker pin."""
-    steel = kf.Material(E=2.1e11, rho=7850.0, yield_strength=350e6)
-    m = kf.Mechanism("strip crank-rocker")
-    m.ground("O2", (0.0, 0.0))
-    m.ground("O4", (0.23, 0.0))
-    m.joint("A", m.at_angle("O2", 0.06, 0.0))
-    m.joint("B", m.at_lengths(("A", 0.25, "coupler"), ("O4", 0.18, "rocker"), branch="open"))
-    m.link("crank", "O2", "A", rigid=True, mass=0.15, length=0.06)
-    m.link("coupler", "A", "B", material=steel, section=kf.Section.rectangle(0.020, 0.003), elements=4,
-           length=0.25)
-    m.link("rocker", "O4", "B", material=steel, section=kf.Section.tube(0.016, 0.0015), elements=4, length=0.18)
-    m.point_mass("B", 0.1)
-    m.drive("crank", speed=rpm * RPM)
-    return kf.Scene(m, effects=("inertia", "coupling", "geometric_nonlinearity"), damping=kf.ModalDamping(0.02),
-                    steps=48, estimate=False)
+    """A new user's crank-rocker (``benchmarks/linkages.py``), 3 mm strip coupler, with the
+    geometric non-linearity on 48 time elements."""
+    return kf.Scene(strip_crank_rocker(rpm, coupler_h=0.003), effects=("inertia", "coupling", "geometric_nonlinearity"),
+                    damping=kf.ModalDamping(0.02), steps=48, estimate=False)
 
 
 def test_the_mesh_check_of_a_non_linear_result_starts_from_it(monkeypatch):

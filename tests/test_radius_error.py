@@ -17,22 +17,14 @@ def test_the_upper_bound_of_a_numerically_damped_spectral_radius_holds_the_true_
     numerical damping lowers its spectral radius by orders of magnitude (1.5e-5, the verdict clear
     without more): ``Stability.upper`` bounds the resolved radius (768 elements), which the
     computed one does not."""
-    import math
+    import sys
     import warnings
+    from pathlib import Path
 
     import kedfem as kf
-    steel = kf.Material(E=2.1e11, rho=7850.0)
-    m = kf.Mechanism("crank-rocker")
-    m.ground("O2", (0.0, 0.0))
-    m.ground("O4", (0.23, 0.0))
-    m.joint("A", m.at_angle("O2", 0.06, 0.0))
-    m.joint("B", m.at_lengths(("A", 0.25, "coupler"), ("O4", 0.18, "rocker"), branch="open"))
-    m.link("crank", "O2", "A", rigid=True, mass=0.15, length=0.06)
-    m.link("coupler", "A", "B", material=steel, section=kf.Section.rectangle(0.020, 0.006), elements=4,
-           length=0.25)
-    m.link("rocker", "O4", "B", material=steel, section=kf.Section.tube(0.016, 0.0015), elements=4, length=0.18)
-    m.point_mass("B", 0.1)
-    m.drive("crank", speed=450 * 2 * math.pi / 60)
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from linkages import strip_crank_rocker
+    m = strip_crank_rocker(450.0, coupler_h=0.006)
     kw = dict(effects=("inertia", "coupling", "axial_stiffening"), damping=kf.ModalDamping(0.02))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

@@ -216,15 +216,6 @@ class _RestrictedDiscrete:
         return U[:, self._idx], V[:, self._idx]
 
 
-@dataclass(frozen=True)
-class _RestrictedStart:
-    """A result as the start of a solve on another mesh of its mechanism (what ``_Run`` reads of a
-    start: its sampler's discrete solution and its model's drive)."""
-
-    model: object
-    sampler: object
-
-
 def _restricted_start(res, coarse, scene):
     """``res`` read on the DOFs of ``coarse`` (the same joints and the nodes both meshes share),
     as the start of the comparison solve of a non-linear scene: Newton from the linear response
@@ -255,5 +246,6 @@ def _restricted_start(res, coarse, scene):
         if k is None:
             return None
         idx.append(k)
-    return _RestrictedStart(res.model, SimpleNamespace(discrete=_RestrictedDiscrete(res.sampler.discrete,
-                                                                                   np.array(idx))))
+    # what _Run reads of a start: its sampler's discrete solution and its model's drive
+    discrete = _RestrictedDiscrete(res.sampler.discrete, np.array(idx))
+    return SimpleNamespace(model=res.model, sampler=SimpleNamespace(discrete=discrete))

@@ -401,11 +401,9 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
             tried = (f"the {sc.nonlinear_method} iteration on {'/'.join(str(lv.n) for lv in self.levels)} "
                      "time elements (and Anderson acceleration)")
             what = f"it did not converge within max_iter = {sc.max_iter} linear solves"
-        highest = ""
-        if self.highest is not None:  # the path names the speed the continuation stalled at
-            said = f"{self.highest * rpm:.6g} rpm" in what
-            highest = (f"; {'' if said else f'it got as far as {self.highest * rpm:.6g} rpm; '}the response may "
-                       "exist higher (the steps start from a fraction of the scene's speed)")
+        # (the continuation's message in the path names the speed it stalled at)
+        highest = ("; the response may exist higher (the steps start from a fraction of the scene's speed)"
+                   if self.highest is not None else "")
         nxt = ("kf.continuation(scene, lo, hi) (kedfem continuation SCENE --speeds LO:HI) follows the response "
                "over speed and says where it ends or loses its stability")
         if sc.nonlinear_method != "newton":

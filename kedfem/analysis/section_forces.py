@@ -190,10 +190,8 @@ class SectionForces:
         cache = self._motion_cache()  # shared by the levels read on one grid
         key = ("kinetostatic axial force", lk.name, elastic)
         if key not in cache:
-            if ("kinetostatic forces",) not in cache:
-                asm = self._assembler()
-                cache[("kinetostatic forces",)] = (asm.joint_forces(), asm.weight)
-            forces, weight = cache[("kinetostatic forces",)]
+            asm = self._assembler()  # one per grid; its joint forces are computed once
+            forces, weight = asm.joint_forces(), asm.weight
             s1 = np.asarray(np.arange(lk.elements) * Le if np.ndim(Le) == 0 else lk.nodes[:-1], float)
             L = np.broadcast_to(np.asarray(Le, float), s1.shape)
             N = link_axial_force_at(mech, self.motion, forces, lk.name,

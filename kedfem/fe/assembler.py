@@ -100,6 +100,7 @@ class Assembler:
         self._coupling = None
         self._full_maps: dict = {}  # group maps over the whole cycle, for the state terms
         self._full_forms = None     # the entity forms they are built from
+        self._local_beam = None     # the beam elements' map to their local DOFs (local_beam_map)
         self._forms = None
 
     # ------------------------------------------------------------- properties
@@ -548,7 +549,7 @@ class Assembler:
         state terms of every iterate map through the product once instead of through ``E`` and
         ``T`` in turn (two products of small matrices fewer each way).
         """
-        if mo is self.motion and getattr(self, "_local_beam", None) is not None:
+        if mo is self.motion and self._local_beam is not None:
             return self._local_beam
         gm = self._state_map("beam", mo)
         T = el.rotation_blocks(mo.theta[:, self.beam_member])
