@@ -158,3 +158,37 @@ def test_newton_stops_on_a_predicted_change_only_where_the_residual_bears_it_out
     assert np.linalg.norm(slow.solution - Us) / np.linalg.norm(Us) <= 1e-6
     without_merit = nonlinear.newton(G, 4, 2, 1.0, eps=1e-6, x0=start, rate=prior)
     assert len(without_merit.history) > 3
+
+
+def _rotating(theta, scale=1.0):
+    """A map whose correction turns the error by ``theta`` in each DOF pair (scaled by ``scale``):
+    a full step never gets nearer, and the residual falls along it by a factor per line-search
+    step that shrinks with ``theta`` (creeping for a small one)."""
+    rng = np.random.default_rng(3)
+    Us, Vs = rng.standard_normal((4, 2)), rng.standard_normal((4, 2))
+    c, s_ = math.cos(theta), math.sin(theta)
+    R = scale * np.array([[c, -s_], [s_, c]])
+
+    def G(U, V, it):
+        Un, Vn = Us + (U - Us) @ R.T, Vs + (V - Vs) @ R.T
+        return Un, Un, Vn
+
+    def merit(U, V):
+        return float(np.linalg.norm(U - Us) + np.linalg.norm(V - Vs))
+
+    return G, merit, (Us + 0.01, Vs + 0.01), Us
+
+
+def test_newton_stops_when_its_line_search_creeps_and_not_while_it_gains():
+    """A line search that lowers the residual by about 1 % per solve (the corrections stay the size
+    they were) is named stalled after STALL_SOLVES of them, not run to max_iter; one that gains a
+    quarter per solve goes on to converge."""
+    G, merit, start, Us = _rotating(0.3)
+    with pytest.warns(ConvergenceWarning, match="stalled"):
+        out = nonlinear.newton(G, 4, 2, 1.0, eps=1e-6, x0=start, merit=merit, max_iter=50)
+    assert not out.converged and "stalled" in out.message
+    assert len(out.history) <= nonlinear.WATCHDOG + nonlinear.STALL_SOLVES + 2, len(out.history)
+    G, merit, start, Us = _rotating(1.5)
+    out = nonlinear.newton(G, 4, 2, 1.0, eps=1e-6, x0=start, merit=merit, max_iter=50)
+    assert out.converged, out.message
+    assert np.linalg.norm(out.solution - Us) / np.linalg.norm(Us) <= 1e-5

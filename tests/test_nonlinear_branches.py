@@ -118,7 +118,8 @@ def test_a_continuation_starts_from_the_given_start():
         alone = kf.solve(scene(400, steps=24, estimate=False))
     assert "from 340 rpm" in given.path and "the given start" in given.path, given.path
     assert "from 340 rpm" not in alone.path and "the linear response" in alone.path, alone.path
-    assert given.iterations < alone.iterations  # measured 175 and 372 linear solves
+    assert given.iterations < alone.iterations  # measured 175 and 218 linear solves (372 before the
+    # first correction decided the continuation's steps)
     a = np.array([[p.deflection, p.stress] for p in given.peaks()])
     b = np.array([[p.deflection, p.stress] for p in alone.peaks()])
     assert np.max(np.abs(a / b - 1)) < 1e-6
@@ -206,7 +207,6 @@ def test_a_relaxed_iteration_from_an_interpolated_start_takes_no_chord_step(monk
     with chord steps it stopped 3.4e-3 from the solution at eps 1e-4. A chord step is taken only
     from states whose kinematic rows hold (collocation.kinematic_defect), so it ends where the
     full steps end."""
-    from kedfem.analysis import problem
     from kedfem.analysis.pipeline import _Run
     from kedfem.solvers import collocation
     with warnings.catch_warnings():
@@ -252,6 +252,45 @@ def test_a_level_reached_by_continuation_keeps_its_elements_snapped_to_the_kinks
     assert seen and res.error.met
     for want, got, converged in seen:
         assert converged and want is not None and got is not None and np.array_equal(want, got)
+
+
+def test_a_continuation_step_too_long_is_shortened_before_its_newton_iteration(monkeypatch):
+    """Newton's first correction from the predictor is the predictor's error: a step whose first
+    correction exceeds PREDICTOR_REJECT times the aim is shortened without its Newton iteration
+    (which failed after 12-16 solves at 0.12 and more), so the continuation to 350 rpm costs
+    fewer linear solves (173 with the iteration-count step control) and gives the same response
+    as Newton from a nearby given start."""
+    from kedfem.analysis import branch
+    firsts, solved = [], []
+    orig_first, orig_solve = branch._first_correction, branch.Family.solve
+
+    def first(family, xp, lam):
+        g, c0 = orig_first(family, xp, lam)
+        firsts.append((lam, c0))
+        return g, c0
+
+    def solve(self, lam, x0, eps, max_iter=30):
+        solved.append(lam)
+        return orig_solve(self, lam, x0, eps, max_iter)
+
+    monkeypatch.setattr(branch, "_first_correction", first)
+    monkeypatch.setattr(branch.Family, "solve", solve)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = kf.solve(scene(350, steps=24, estimate=False))
+    assert "continuation in speed" in res.path, res.path
+    limit = branch.PREDICTOR_REJECT * branch.PREDICTOR_CHANGE
+    rejected = [lam for lam, c0 in firsts if c0 > limit]
+    assert rejected and not set(rejected) & set(solved), (rejected, firsts)
+    assert res.iterations <= 140, res.iterations  # measured 127
+    monkeypatch.undo()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        near = kf.solve(scene(345, steps=24, estimate=False), start=res)
+        again = kf.solve(scene(350, steps=24, estimate=False), start=near)
+    a = np.array([[p.deflection, p.stress] for p in res.peaks()])
+    b = np.array([[p.deflection, p.stress] for p in again.peaks()])
+    assert np.max(np.abs(a / b - 1)) < 1e-5
 
 
 def test_a_continuation_in_speed_reports_its_progress_and_the_time_left(monkeypatch):

@@ -50,12 +50,31 @@ log = logging.getLogger(__name__)
 #: most points of one branch
 MAX_POINTS = 400
 #: most linear solves one continuation to a target may spend (:func:`reach`; the four-bar preset
-#: at 350 rpm needs 253, a branch that wanders without end would go on for thousands)
+#: at 350 rpm needs 147 on 48 elements; a branch that wanders without end
+#: would go on for thousands)
 MAX_SOLVES = 1000
 #: most linear solves of Newton from the linear response when a continuation looks for its start
 START_ITER = 16
+#: the speeds tried as a start: the target times 0.75, 0.75 f, 0.75 f^2, ... down to half of it,
+#: then halves. A continuation's steps can be no longer than the distance of the response's
+#: complex singularities in speed, about the damping ratio times the speed (where a harmonic of
+#: the drive meets a mode; the four-bar preset near 220 rpm: the response's differences in speed
+#: shrink as (h / 2.5 rpm)^k), so every speed nearer the target saves steps of a few solves
+#: each; a start that fails costs START_ITER solves
+START_FACTOR = 0.85
 #: most linear solves of one natural continuation step (a step that needs more is halved)
 STEP_ITER = 16
+#: the first Newton correction from the predictor (relative to the response) a natural
+#: continuation step aims at: the next step is scaled by ``(PREDICTOR_CHANGE / c0)^(1/p)``
+#: (``p`` the predictor's order: 1 from one point, 2 from two)
+PREDICTOR_CHANGE = 0.05
+#: a first correction above this many times the aim rejects the step before its Newton
+#: iteration (the four-bar preset at 350 rpm: every step whose first correction was 0.12 or
+#: more failed after 12-16 linear solves, every one at 0.085 or less converged)
+PREDICTOR_REJECT = 3.0
+#: tolerance of the Newton iterations at the speeds on the way (the target's is the caller's):
+#: they are the predictor's bases, whose error adds to a predictor error of PREDICTOR_CHANGE
+STEP_EPS = 1e-3
 #: relative tolerance of the arclength corrector (displacements and parameter)
 CORRECTOR_EPS = 1e-8
 #: most bordered Newton steps of one correction
@@ -498,6 +517,18 @@ def _extrapolate(pts: list, lam: float) -> np.ndarray:
     return b.x + (b.x - a.x) * ((lam - b.lam) / (b.lam - a.lam))
 
 
+def _first_correction(family: Family, xp: np.ndarray, lam: float) -> tuple[np.ndarray, float]:
+    """Newton's first full step from the predicted ``xp`` at ``lam``: the new iterate (packed)
+    and the relative change of its displacements (the predictor's error, as Newton's iteration
+    measures its changes)."""
+    _d, g = family.step(xp, lam)
+    U, _V = family.unpack(xp, lam)
+    Un, _Vn = family.unpack(g, lam)
+    nn = float(np.linalg.norm(Un))
+    dd = float(np.linalg.norm(Un - U))
+    return g, (0.0 if dd == 0.0 else (dd / nn if nn > 0 else math.inf))
+
+
 def in_unit(value: float, unit: tuple = (1.0, ""), digits: int = 6) -> str:
     """``value`` stated in ``unit`` = (factor, name): ``in_unit(41.8, (60 / (2 pi), "rpm"))`` ->
     ``"399.2 rpm"`` (the magnitude: a negative speed runs the other way)."""
@@ -511,12 +542,16 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
     converges from the linear response, or from a given start.
 
     The start is the given one where Newton converges from it, else the largest of
-    ``target / 2, target / 4, ...`` (down to ``lowest``, default
-    ``target / 64``) where it converges; from there natural continuation (a linear predictor in
-    the parameter, Newton with a line search as corrector) steps toward ``target`` with step
-    control. When the step cannot be shortened further a fold is likely: pseudo-arclength
-    continuation (:class:`Tracker`) then follows the branch through it (and through the fold
-    that may turn it forward again) until it crosses ``target``.
+    ``0.75 target``, 0.64, 0.54, 0.46 of it, then halves (down to ``lowest``, default
+    ``target / 64``) where it converges (:data:`START_FACTOR`); from there natural continuation
+    (a linear predictor in the parameter, Newton with a line search as corrector) steps toward
+    ``target``. Newton's first correction from the predictor measures the predictor's error: a
+    step whose first correction exceeds :data:`PREDICTOR_REJECT` times the aim
+    (:data:`PREDICTOR_CHANGE`) is shortened before its iteration, and each step is scaled so
+    that the next one's comes near the aim; the speeds on the way are solved to
+    :data:`STEP_EPS`, the target to ``eps``. When the step cannot be shortened further a fold
+    is likely: pseudo-arclength continuation (:class:`Tracker`) then follows the branch through
+    it (and through the fold that may turn it forward again) until it crosses ``target``.
 
     Parameters
     ----------
@@ -582,7 +617,7 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
         if x is not None:
             start = Point(sign * lam, x, np.asarray(out.discrete.floquet_multipliers), discrete=out.discrete)
             break
-        lam *= 0.5 if lam < 0.7 * abs(target) else 2.0 / 3.0
+        lam *= START_FACTOR if lam > 0.5 * abs(target) else 0.5
     if start is None:
         raise NonlinearSolveError(
             f"no periodic response found from the linear response at any of {fmt(0.75 * target)} .. "
@@ -594,20 +629,32 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
     steps = 0
     if progress is not None:
         progress(start.lam, start.lam, steps)
+    aim = PREDICTOR_CHANGE
     while abs(pts[-1].lam) < abs(target) * (1 - 1e-12) and steps < max_steps and not spent():
         steps += 1
         new = sign * min(abs(target), abs(pts[-1].lam) + step)
+        order = 1 if len(pts) < 2 else 2  # the predictor's: constant from one point, linear from two
+        x = None
         try:
-            out, x = family.solve(new, _extrapolate(pts, new), eps, max_iter=STEP_ITER)
+            first, c0 = _first_correction(family, _extrapolate(pts, new), new)
+            if c0 <= PREDICTOR_REJECT * aim:
+                # Newton goes on from its first full step (the linear solve is not made twice)
+                on_way = abs(new) < abs(target) * (1 - 1e-12)
+                out, x = family.solve(new, first, max(eps, STEP_EPS) if on_way else eps, max_iter=STEP_ITER - 1)
+                if x is None:  # a first correction this large did not converge here: aim lower
+                    aim = min(aim, 0.7 * c0)
         except _FAILURES:
-            x = None
+            c0 = math.inf
         if x is not None:
             pts.append(Point(new, x, np.asarray(out.discrete.floquet_multipliers), discrete=out.discrete))
-            step *= 1.5 if out.iterations <= 7 else (1.0 if out.iterations <= 11 else 0.7)
+            grow = (aim / c0) ** (1.0 / order) if c0 > 0 else 2.0
+            step *= min(2.0, max(0.5, grow), 1.5 if out.iterations <= 7 else (1.0 if out.iterations <= 11 else 0.7))
             if progress is not None:
                 progress(new, start.lam, steps)
             continue
-        step *= 0.5
+        # rejected on its first correction (shorter by what the predictor's order says it needs),
+        # or its Newton iteration failed
+        step *= min(0.5, max(0.25, (aim / c0) ** (1.0 / order))) if math.isfinite(c0) and c0 > 0 else 0.5
         if step >= 1e-3 * abs(pts[-1].lam):
             continue
         # the natural step cannot be shortened further: a fold; follow the branch through it

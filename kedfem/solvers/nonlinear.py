@@ -56,6 +56,13 @@ MAX_TRIALS = 12
 WATCHDOG = 10
 #: A watched full step whose correction exceeds the best one by this factor ends the watch
 WATCHDOG_GROWTH = 10.0
+#: The line search stalls when, over this many linear solves, the change of the iterate ...
+STALL_SOLVES = 10
+#: ... has not fallen below this fraction of what it was: the merit creeps down while the
+#: corrections stay of the response's size (the four-bar preset with geometric_nonlinearity at
+#: 350 rpm from the linear response: 0.93, 0.92, ... 0.67 over 35 solves, which a continuation
+#: in speed then had to do anyway; a converging line search halves its change every 2-3 solves)
+STALL_RATIO = 0.7
 #: Newton stops on a change its rate predicts the next one to be below this fraction of ``eps``
 #: (see :class:`NewtonRate`): a tenth, so that a prediction off by 10x still meets ``eps``
 PREDICT_FRACTION = 0.1
@@ -556,11 +563,13 @@ def newton(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter: int
     lam = 1.0
     converged, message, guess = False, "", None
     last = None  # the change before a full step of the line search, for the observed rate
+    searched: list[tuple[int, float]] = []  # (solves, change) of the line search's iterates
     while True:
         change = 0.0 if dU == 0.0 else (dU / nU if nU > 0 else math.inf)
         if last is not None:
             seen = NewtonRate.observed(last, change) or seen
         history.append(change)
+        searched.append((solves, change))
         log.debug("newton: solve %d change %.3e merit %s lambda %.3g", solves, change,
                   "-" if phi is None else f"{phi:.3e}", lam)
         if change <= eps:
@@ -574,6 +583,12 @@ def newton(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter: int
             break
         if solves >= max_iter:
             message = f"not converged after {max_iter} linear solves (last change {change:.2e} > eps {eps:.1e})"
+            break
+        before = [c for k, c in searched if k <= solves - STALL_SOLVES]
+        if before and change > STALL_RATIO * before[-1]:
+            message = (f"stalled: the change fell from {before[-1]:.2e} to only {change:.2e} over the last "
+                       f"{STALL_SOLVES} or more linear solves ({solves} in all): the line search creeps, the "
+                       "iterate is too far from a periodic response for the linearisation to lead to it")
             break
         if phi is None:
             phi = phi_of(x) if merit is not None else float(np.linalg.norm(d))
