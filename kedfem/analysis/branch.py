@@ -50,9 +50,14 @@ log = logging.getLogger(__name__)
 #: most points of one branch
 MAX_POINTS = 400
 #: most linear solves one continuation to a target may spend (:func:`reach`; the four-bar preset
-#: at 350 rpm needs 147 on 48 elements; a branch that wanders without end
-#: would go on for thousands)
-MAX_SOLVES = 1000
+#: needs 147 at 350 rpm on 48 elements, and with the Rayleigh damping of the exact comparison
+#: about 1200 at 425 rpm, where it passes two folds at 399.6 and 398.8 rpm with pseudo-arclength
+#: steps of 5-10 solves each; a branch that wanders without end would go on for thousands)
+MAX_SOLVES = 3000
+#: most folds a continuation to a target passes (the Rayleigh four-bar's response curve turns
+#: twice below 430 rpm and four times below 465; a four-bar on 24 gauss2 elements, whose orbits
+#: are spuriously unstable, turned at nine folds between 135 and 196 rpm in 3000 solves)
+MAX_FOLDS = 4
 #: most linear solves of Newton from the linear response when a continuation looks for its start
 START_ITER = 16
 #: the speeds tried as a start: the target times 0.75, 0.75 f, 0.75 f^2, ... down to half of it,
@@ -669,7 +674,12 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
             progress(pts[-1].lam, start.lam, steps)
     last = pts[-1]
     if abs(last.lam - target) > 1e-12 * abs(target):
-        why = f" (its budget of {max_solves} linear solves spent)" if spent() else ""
+        if len(folds) > MAX_FOLDS:
+            why = (f" (the branch turned at {len(folds)} fold{'s' if len(folds) != 1 else ''}, at "
+                   f"{', '.join(fmt(f) for f in folds)}: it wanders more than a response curve on "
+                   "its way to one speed does)")
+        else:
+            why = f" (its budget of {max_solves} linear solves spent)" if spent() else ""
         raise NonlinearSolveError(
             f"the continuation from {fmt(start.lam)} stalled at {fmt(last.lam)} before the target "
             f"{fmt(target)}{why}", highest=abs(last.lam),
@@ -700,6 +710,8 @@ def _through_folds(family: Family, pts: list, target: float, eps: float, folds: 
         d = math.copysign(1.0, t[-1])
         if d != prev_dir:
             folds.append(p.lam)
+            if len(folds) > MAX_FOLDS:
+                return None
             prev_dir = d
             turns += 1
         if turns >= 2 and d == start_dir and len(out) >= 2 and abs(q.lam) > abs(out[-1].lam):
