@@ -365,6 +365,19 @@ def test_the_continuation_forecast_is_the_pace_so_far_times_the_speed_left(monke
             logging.getLogger("kedfem.analysis.pipeline").removeHandler(handler)
     assert math.isclose(p.left, 36.0)
     assert len(records) == 1 and "about 36 s more" in records[0].getMessage()
+    # not before a tenth of the way: the first steps are short while the step control settles
+    clock = iter([0.0, 5.0, 40.0])
+    monkeypatch.setattr(homotopy.time, "perf_counter", lambda: next(clock))
+    q = homotopy.ContinuationProgress("m", 100.0, 48, None)
+    logging.getLogger("kedfem.analysis.pipeline").addHandler(handler)
+    try:
+        q(20.0, 20.0, 0)
+        q(22.0, 20.0, 3)  # 2.5 % of the way: 155 s forecast, not said
+        n_early = len(records)
+        q(40.0, 20.0, 5)  # 25 %: 120 s, said
+    finally:
+        logging.getLogger("kedfem.analysis.pipeline").removeHandler(handler)
+    assert n_early == 1 and len(records) == 2 and "about 120 s more" in records[1].getMessage()
 
 
 def _strip_crank_rocker(rpm):

@@ -60,9 +60,10 @@ WATCHDOG_GROWTH = 10.0
 STALL_SOLVES = 10
 #: ... has not fallen below this fraction of what it was: the merit creeps down while the
 #: corrections stay of the response's size (the four-bar preset with geometric_nonlinearity at
-#: 350 rpm from the linear response: 0.93, 0.92, ... 0.67 over 35 solves, which a continuation
-#: in speed then had to do anyway; a converging line search halves its change every 2-3 solves)
-STALL_RATIO = 0.7
+#: 350 rpm from the linear response: 0.93, 0.92, ... 0.86 over 10 solves, 0.67 after 35, which a
+#: continuation in speed then had to do anyway; at 300 rpm its line search falls 0.74 -> 0.33 ->
+#: 0.22 over twice 10 solves and converges after 33: 0.7 stopped it there)
+STALL_RATIO = 0.85
 #: Newton stops on a change its rate predicts the next one to be below this fraction of ``eps``
 #: (see :class:`NewtonRate`): a tenth, so that a prediction off by 10x still meets ``eps``
 PREDICT_FRACTION = 0.1
@@ -563,13 +564,16 @@ def newton(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter: int
     lam = 1.0
     converged, message, guess = False, "", None
     last = None  # the change before a full step of the line search, for the observed rate
-    searched: list[tuple[int, float]] = []  # (solves, change) of the line search's iterates
+    # (solves, change) of the iterates the line search accepted (not the watch's best it starts
+    # from: a damped step lowers the residual while the correction may grow, 0.056 -> 0.74)
+    searched: list[tuple[int, float]] = []
     while True:
         change = 0.0 if dU == 0.0 else (dU / nU if nU > 0 else math.inf)
         if last is not None:
             seen = NewtonRate.observed(last, change) or seen
         history.append(change)
-        searched.append((solves, change))
+        if phi is not None:  # an iterate of the line search
+            searched.append((solves, change))
         log.debug("newton: solve %d change %.3e merit %s lambda %.3g", solves, change,
                   "-" if phi is None else f"{phi:.3e}", lam)
         if change <= eps:
