@@ -181,13 +181,13 @@ def _rotating(theta, scale=1.0):
 
 def test_newton_stops_when_its_line_search_creeps_and_not_while_it_gains():
     """A line search that lowers the residual by about 1 % per solve (the corrections stay the size
-    they were) is named stalled after STALL_SOLVES of them, not run to max_iter; one that gains a
+    they were) is named stalled after STALL_STEPS of them, not run to max_iter; one that gains a
     quarter per solve goes on to converge."""
     G, merit, start, Us = _rotating(0.3)
     with pytest.warns(ConvergenceWarning, match="stalled"):
         out = nonlinear.newton(G, 4, 2, 1.0, eps=1e-6, x0=start, merit=merit, max_iter=50)
     assert not out.converged and "stalled" in out.message
-    assert len(out.history) <= nonlinear.WATCHDOG + nonlinear.STALL_SOLVES + 2, len(out.history)
+    assert len(out.history) <= nonlinear.WATCHDOG + nonlinear.STALL_STEPS + 2, len(out.history)
     G, merit, start, Us = _rotating(1.5)
     out = nonlinear.newton(G, 4, 2, 1.0, eps=1e-6, x0=start, merit=merit, max_iter=50)
     assert out.converged, out.message

@@ -293,19 +293,6 @@ def test_a_continuation_step_too_long_is_shortened_before_its_newton_iteration(m
     assert np.max(np.abs(a / b - 1)) < 1e-5
 
 
-def test_a_continuation_that_turns_at_more_folds_than_allowed_is_a_named_failure(monkeypatch):
-    """A run-up passes at most MAX_FOLDS folds: the four-bar on 24 gauss2 elements (not L-stable:
-    its orbits come out spuriously unstable) turns at nine between 135 and 196 rpm and ends at the
-    fifth; here, allowed none, at its first, naming it, not at the solve budget."""
-    from kedfem.analysis import branch
-    monkeypatch.setattr(branch, "MAX_FOLDS", 0)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        with pytest.raises(kf.NonlinearSolveError, match=r"the branch turned at 1 fold, at 19\d\.\d+ rpm") as e:
-            kf.solve(scene(200, steps=24, estimate=False, method="gauss2"))
-    assert "budget" not in str(e.value)
-
-
 def test_a_continuation_in_speed_reports_its_progress_and_the_time_left(monkeypatch):
     """The continuation a solve falls back on reports each speed it reaches (to the solve's progress
     bar, with the seconds left at its pace so far), from its start up to the target."""

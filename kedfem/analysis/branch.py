@@ -54,10 +54,6 @@ MAX_POINTS = 400
 #: about 1200 at 425 rpm, where it passes two folds at 399.6 and 398.8 rpm with pseudo-arclength
 #: steps of 5-10 solves each; a branch that wanders without end would go on for thousands)
 MAX_SOLVES = 3000
-#: most folds a continuation to a target passes (the Rayleigh four-bar's response curve turns
-#: twice below 430 rpm and four times below 465; a four-bar on 24 gauss2 elements, whose orbits
-#: are spuriously unstable, turned at nine folds between 135 and 196 rpm in 3000 solves)
-MAX_FOLDS = 4
 #: most linear solves of Newton from the linear response when a continuation looks for its start
 START_ITER = 16
 #: the speeds tried as a start: the target times 0.75, 0.75 f, 0.75 f^2, ... down to half of it,
@@ -74,9 +70,14 @@ STEP_ITER = 16
 #: (``p`` the predictor's order: 1 from one point, 2 from two)
 PREDICTOR_CHANGE = 0.05
 #: a first correction above this many times the aim rejects the step before its Newton
-#: iteration (the four-bar preset at 350 rpm: every step whose first correction was 0.12 or
-#: more failed after 12-16 linear solves, every one at 0.085 or less converged)
+#: iteration (the four-bar preset at 350 rpm on 48 elements: the steps whose first correction
+#: was 0.12 or more failed after 12-16 linear solves, every one at 0.085 or less converged), except
+#: a step onto the target, whose problem may sit on elements snapped to the data's kinks (a
+#: first correction that does not shrink with the step: 0.10 on 12 elements of the inverted
+#: slider-crank)
 PREDICTOR_REJECT = 3.0
+#: the least the aim falls to after failed steps (it rises back by 1.25 per step that converges)
+AIM_LEAST = 0.005
 #: tolerance of the Newton iterations at the speeds on the way (the target's is the caller's):
 #: they are the predictor's bases, whose error adds to a predictor error of PREDICTOR_CHANGE
 STEP_EPS = 1e-3
@@ -503,7 +504,8 @@ class Reached:
     solves : int
         Linear periodic solves spent.
     path : tuple of Point
-        The points on the way (the start first, the target last).
+        The points on the way (the start first, the target last; those between solved to
+        :data:`STEP_EPS`, or the corrector's tolerance through folds, not to ``eps``).
     """
 
     point: Point
@@ -547,14 +549,16 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
     converges from the linear response, or from a given start.
 
     The start is the given one where Newton converges from it, else the largest of
-    ``0.75 target``, 0.64, 0.54, 0.46 of it, then halves (down to ``lowest``, default
-    ``target / 64``) where it converges (:data:`START_FACTOR`); from there natural continuation
+    ``0.75 target``, 0.64, 0.54, 0.46 of it, then its halves, not below ``lowest`` (default
+    ``target / 64``), where it converges (:data:`START_FACTOR`); from there natural continuation
     (a linear predictor in the parameter, Newton with a line search as corrector) steps toward
     ``target``. Newton's first correction from the predictor measures the predictor's error: a
-    step whose first correction exceeds :data:`PREDICTOR_REJECT` times the aim
-    (:data:`PREDICTOR_CHANGE`) is shortened before its iteration, and each step is scaled so
-    that the next one's comes near the aim; the speeds on the way are solved to
-    :data:`STEP_EPS`, the target to ``eps``. When the step cannot be shortened further a fold
+    step on the way whose first correction exceeds :data:`PREDICTOR_REJECT` times the aim
+    (:data:`PREDICTOR_CHANGE`, lowered below the first correction of a step whose iteration
+    failed, down to :data:`AIM_LEAST`, and raised back by 1.25 per step that converges) is
+    shortened before its iteration and not counted as a step, and each step is scaled so that the
+    next one's comes near the aim; the speeds on the way are solved to :data:`STEP_EPS`, the
+    target to ``eps``. When the step cannot be shortened further a fold
     is likely: pseudo-arclength continuation (:class:`Tracker`) then follows the branch through
     it (and through the fold that may turn it forward again) until it crosses ``target``.
 
@@ -614,7 +618,9 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
             start = Point(sign * abs(given[0]), x, np.asarray(out.discrete.floquet_multipliers),
                           discrete=out.discrete)
     lam = 0.75 * abs(target)
+    tried = lam
     while start is None and lam >= lowest * (1 - 1e-12):
+        tried = lam
         try:
             out, x = family.solve(sign * lam, None, eps, max_iter=START_ITER)
         except _FAILURES:
@@ -626,8 +632,9 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
     if start is None:
         raise NonlinearSolveError(
             f"no periodic response found from the linear response at any of {fmt(0.75 * target)} .. "
-            f"{fmt(lowest)} (below the target): the non-linear iteration does not converge even far below "
-            "the target", highest=None, tried="Newton from the linear response at the target and its halves")
+            f"{fmt(tried)} (below the target): the non-linear iteration does not converge even far below "
+            "the target", highest=None,
+            tried="Newton from the linear response at 0.75, 0.64, 0.54, 0.46 of the target and its halves below")
     pts = [start]
     step = 0.1 * abs(start.lam)
     folds: list[float] = []
@@ -636,24 +643,27 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
         progress(start.lam, start.lam, steps)
     aim = PREDICTOR_CHANGE
     while abs(pts[-1].lam) < abs(target) * (1 - 1e-12) and steps < max_steps and not spent():
-        steps += 1
         new = sign * min(abs(target), abs(pts[-1].lam) + step)
+        on_way = abs(new) < abs(target) * (1 - 1e-12)
         order = 1 if len(pts) < 2 else 2  # the predictor's: constant from one point, linear from two
-        x = None
+        x, counted = None, False
         try:
             first, c0 = _first_correction(family, _extrapolate(pts, new), new)
-            if c0 <= PREDICTOR_REJECT * aim:
+            if c0 <= PREDICTOR_REJECT * aim or not on_way:
                 # Newton goes on from its first full step (the linear solve is not made twice)
-                on_way = abs(new) < abs(target) * (1 - 1e-12)
+                steps, counted = steps + 1, True  # (a step rejected on its first correction is not counted)
                 out, x = family.solve(new, first, max(eps, STEP_EPS) if on_way else eps, max_iter=STEP_ITER - 1)
-                if x is None:  # a first correction this large did not converge here: aim lower
-                    aim = min(aim, 0.7 * c0)
+                if x is None and on_way:  # a first correction this large did not converge here: aim lower
+                    aim = max(min(aim, 0.7 * c0), AIM_LEAST)
         except _FAILURES:
+            steps += 0 if counted else 1
             c0 = math.inf
         if x is not None:
             pts.append(Point(new, x, np.asarray(out.discrete.floquet_multipliers), discrete=out.discrete))
             grow = (aim / c0) ** (1.0 / order) if c0 > 0 else 2.0
-            step *= min(2.0, max(0.5, grow), 1.5 if out.iterations <= 7 else (1.0 if out.iterations <= 11 else 0.7))
+            solves = out.iterations + 1  # with the first correction
+            step *= min(2.0, max(0.5, grow), 1.5 if solves <= 8 else (1.0 if solves <= 12 else 0.7))
+            aim = min(PREDICTOR_CHANGE, 1.25 * aim)  # back toward the aim after a failure lowered it
             if progress is not None:
                 progress(new, start.lam, steps)
             continue
@@ -670,16 +680,19 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
             break
         pts.extend(found)
         step = 0.02 * abs(pts[-1].lam)
+        aim = PREDICTOR_CHANGE  # a new stretch of the branch
         if progress is not None:
             progress(pts[-1].lam, start.lam, steps)
     last = pts[-1]
     if abs(last.lam - target) > 1e-12 * abs(target):
-        if len(folds) > MAX_FOLDS:
-            why = (f" (the branch turned at {len(folds)} fold{'s' if len(folds) != 1 else ''}, at "
-                   f"{', '.join(fmt(f) for f in folds)}: it wanders more than a response curve on "
-                   "its way to one speed does)")
+        if spent():
+            why = f" (its budget of {max_solves} linear solves spent)"
+        elif steps >= max_steps:
+            why = f" (its {max_steps} steps taken)"
         else:
-            why = f" (its budget of {max_solves} linear solves spent)" if spent() else ""
+            why = ""
+        if folds and why:
+            why = why[:-1] + f", through folds at {', '.join(fmt(f) for f in folds)})"
         raise NonlinearSolveError(
             f"the continuation from {fmt(start.lam)} stalled at {fmt(last.lam)} before the target "
             f"{fmt(target)}{why}", highest=abs(last.lam),
@@ -710,19 +723,17 @@ def _through_folds(family: Family, pts: list, target: float, eps: float, folds: 
         d = math.copysign(1.0, t[-1])
         if d != prev_dir:
             folds.append(p.lam)
-            if len(folds) > MAX_FOLDS:
-                return None
             prev_dir = d
             turns += 1
-        if turns >= 2 and d == start_dir and len(out) >= 2 and abs(q.lam) > abs(out[-1].lam):
-            # through the folds and forward again: natural continuation goes on from here
-            out.append(q)
-            return out
         if (abs(p.lam) - abs(target)) * (abs(q.lam) - abs(target)) <= 0 and d > 0 \
                 and abs(q.lam) >= abs(target):
             tau = (target - p.lam) / (q.lam - p.lam)
             end = tr.fixed(p.x + tau * (q.x - p.x), target)
             return None if end is None else out + [end]
+        if turns >= 2 and d == start_dir and len(out) >= 2 and abs(q.lam) > abs(out[-1].lam):
+            # through the folds and forward again: natural continuation goes on from here
+            out.append(q)
+            return out
         out.append(q)
         p = q
     return None

@@ -56,13 +56,15 @@ MAX_TRIALS = 12
 WATCHDOG = 10
 #: A watched full step whose correction exceeds the best one by this factor ends the watch
 WATCHDOG_GROWTH = 10.0
-#: The line search stalls when, over this many linear solves, the change of the iterate ...
-STALL_SOLVES = 10
+#: The line search stalls when, over this many accepted steps, all of them damped (a step
+#: fraction below 1), the change of the iterate ...
+STALL_STEPS = 10
 #: ... has not fallen below this fraction of what it was: the merit creeps down while the
 #: corrections stay of the response's size (the four-bar preset with geometric_nonlinearity at
-#: 350 rpm from the linear response: 0.93, 0.92, ... 0.86 over 10 solves, 0.67 after 35, which a
+#: 350 rpm from the linear response: 0.93, 0.92, ... 0.86 over 10 steps, 0.67 after 35, which a
 #: continuation in speed then had to do anyway; at 300 rpm its line search falls 0.74 -> 0.33 ->
-#: 0.22 over twice 10 solves and converges after 33: 0.7 stopped it there)
+#: 0.22 over twice 10 steps and converges after 33 solves: 0.7 stopped it there). Full steps
+#: never stall: their change may rise on the way to the solution (sinh(u - 1) = 0 from 20)
 STALL_RATIO = 0.85
 #: Newton stops on a change its rate predicts the next one to be below this fraction of ``eps``
 #: (see :class:`NewtonRate`): a tenth, so that a prediction off by 10x still meets ``eps``
@@ -564,16 +566,16 @@ def newton(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter: int
     lam = 1.0
     converged, message, guess = False, "", None
     last = None  # the change before a full step of the line search, for the observed rate
-    # (solves, change) of the iterates the line search accepted (not the watch's best it starts
-    # from: a damped step lowers the residual while the correction may grow, 0.056 -> 0.74)
-    searched: list[tuple[int, float]] = []
+    # (change, step fraction) of the iterates the line search accepted (not the watch's best it
+    # starts from: a damped step lowers the residual while the correction may grow, 0.056 -> 0.74)
+    searched: list[tuple[float, float]] = []
     while True:
         change = 0.0 if dU == 0.0 else (dU / nU if nU > 0 else math.inf)
         if last is not None:
             seen = NewtonRate.observed(last, change) or seen
         history.append(change)
-        if phi is not None:  # an iterate of the line search
-            searched.append((solves, change))
+        if phi is not None:  # an iterate of the line search, by a step of fraction lam
+            searched.append((change, lam))
         log.debug("newton: solve %d change %.3e merit %s lambda %.3g", solves, change,
                   "-" if phi is None else f"{phi:.3e}", lam)
         if change <= eps:
@@ -588,10 +590,10 @@ def newton(G, n: int, N: int, period: float, *, eps: float = 1e-6, max_iter: int
         if solves >= max_iter:
             message = f"not converged after {max_iter} linear solves (last change {change:.2e} > eps {eps:.1e})"
             break
-        before = [c for k, c in searched if k <= solves - STALL_SOLVES]
-        if before and change > STALL_RATIO * before[-1]:
-            message = (f"stalled: the change fell from {before[-1]:.2e} to only {change:.2e} over the last "
-                       f"{STALL_SOLVES} or more linear solves ({solves} in all): the line search creeps, the "
+        if len(searched) > STALL_STEPS and change > STALL_RATIO * searched[-STALL_STEPS - 1][0] \
+                and all(f < 1.0 for _c, f in searched[-STALL_STEPS:]):
+            message = (f"stalled: the change went from {searched[-STALL_STEPS - 1][0]:.2e} to {change:.2e} over "
+                       f"{STALL_STEPS} damped steps ({solves} linear solves in all): the line search creeps, the "
                        "iterate is too far from a periodic response for the linearisation to lead to it")
             break
         if phi is None:

@@ -1,0 +1,108 @@
+"""kedfem.analysis.branch.reach on scalar families with known solutions: the step control by the
+predictor's error, the folds, a target whose first correction does not shrink with the step."""
+
+import math
+import types
+import warnings
+
+import numpy as np
+import pytest
+
+from kedfem.analysis import branch
+from kedfem.errors import NonlinearSolveError
+from kedfem.solvers import nonlinear
+
+
+class Curve:
+    """``x + a sin x = lam`` as a family (``reach``'s protocol): the Newton map as its tangent
+    solve; folds where ``1 + a cos x = 0`` (``a > 1``). ``offset``: the equation at ``lam == at``
+    is ``x + a sin x = lam + offset`` (a problem discretised otherwise there, as a pinned level
+    on elements snapped to the data's kinks: the first correction from the neighbours' predictor
+    does not shrink with the step)."""
+
+    def __init__(self, a, offset=0.0, at=None):
+        self.a, self.offset, self.at = a, offset, at
+        self.solves = 0
+        self.solved_at = []
+
+    def F(self, x, lam):
+        return x + self.a * math.sin(x) - lam - (self.offset if lam == self.at else 0.0)
+
+    def G(self, x, lam):
+        return x - self.F(x, lam) / (1.0 + self.a * math.cos(x))
+
+    def unpack(self, x, lam):
+        return x[:1].reshape(1, 1), x[1:].reshape(1, 1)
+
+    def step(self, x, lam):
+        self.solves += 1
+        return types.SimpleNamespace(floquet_multipliers=np.array([0.5])), np.array([self.G(x[0], lam), 0.0])
+
+    def solve(self, lam, x0, eps, max_iter=30):
+        self.solved_at.append(lam)
+        start = (np.array([[lam if x0 is None else x0[0]]]), np.zeros((1, 1)))
+
+        def G(U, V, it):
+            Un = np.array([[self.G(U[0, 0], lam)]])
+            return Un, Un, np.zeros((1, 1))
+
+        def merit(U, V):
+            return abs(self.F(U[0, 0], lam))
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            out = nonlinear.newton(G, 1, 1, 2 * math.pi, eps=eps, max_iter=max_iter, x0=start, merit=merit)
+        self.solves += len(out.history)
+        o = types.SimpleNamespace(iterations=len(out.history),
+                                  discrete=types.SimpleNamespace(floquet_multipliers=np.array([0.5])))
+        return o, (np.array([out.solution[0, 0], 0.0]) if out.converged else None)
+
+
+class FarStart(Curve):
+    """Newton from the linear response (``x0`` None) converges only up to ``lam = 3``."""
+
+    def solve(self, lam, x0, eps, max_iter=30):
+        if x0 is None and lam > 3.0:
+            self.solved_at.append(lam)
+            return types.SimpleNamespace(iterations=max_iter), None
+        return super().solve(lam, x0, eps, max_iter)
+
+
+def test_reach_steps_by_the_predictors_error_to_the_target():
+    c = FarStart(0.5)
+    r = branch.reach(c, 30.0, eps=1e-10)
+    assert r.point.lam == 30.0 and abs(c.F(r.point.x[0], 30.0)) < 1e-8
+    assert r.folds == ()
+    # every counted step solved (a step rejected on its first correction is not a step), and
+    # the speeds on the way to STEP_EPS, the target to eps
+    after = c.solved_at[c.solved_at.index(r.start) + 1:]  # after the start was found
+    assert after[-1] == 30.0 and r.steps == len(after)
+    assert c.solves > len(c.solved_at)  # first corrections and rejected steps cost solves too
+    assert r.solves == c.solves
+
+
+def test_reach_follows_a_response_curve_through_its_folds():
+    c = FarStart(1.2)  # folds near lam = 9.35 / 9.50, 15.68 / 15.78, 21.9 / 22.0, ...
+    r = branch.reach(c, 30.0, eps=1e-10)
+    assert r.point.lam == 30.0 and abs(c.F(r.point.x[0], 30.0)) < 1e-8
+    assert len(r.folds) >= 2
+    for f in r.folds:  # each a fold of the curve: 1 + a cos x = 0 there, lam = x + a sin x
+        x = [xx for xx in (math.acos(-1 / 1.2) + 2 * math.pi * k * s for k in range(6) for s in (1, -1))]
+        lams = [xx + 1.2 * math.sin(xx) for xx in x] + [-xx + 1.2 * math.sin(-xx) for xx in x]
+        assert min(abs(f - v) for v in lams) < 0.05, (f, r.folds)
+
+
+def test_a_step_onto_the_target_is_not_rejected_on_its_first_correction():
+    """The target's problem may differ from those on the way (a level's elements snapped to the
+    data's kinks): its first correction then has a floor that no shorter step lowers. The step
+    onto it goes to Newton's iteration whatever its first correction."""
+    c = FarStart(0.5, offset=4.0, at=20.0)  # a first correction of about 0.2 from any neighbour
+    r = branch.reach(c, 20.0, eps=1e-10)
+    assert r.point.lam == 20.0 and abs(c.F(r.point.x[0], 20.0)) < 1e-8
+    assert c.solved_at.count(20.0) == 1  # the first step onto it
+
+
+def test_a_continuation_out_of_solves_says_so():
+    c = FarStart(1.2)
+    with pytest.raises(NonlinearSolveError, match=r"its budget of 40 linear solves spent"):
+        branch.reach(c, 30.0, eps=1e-10, max_solves=40)
