@@ -642,6 +642,7 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
     if progress is not None:
         progress(start.lam, start.lam, steps)
     aim = PREDICTOR_CHANGE
+    lost = False  # pseudo-arclength did not follow the branch through a fold
     while abs(pts[-1].lam) < abs(target) * (1 - 1e-12) and steps < max_steps and not spent():
         new = sign * min(abs(target), abs(pts[-1].lam) + step)
         on_way = abs(new) < abs(target) * (1 - 1e-12)
@@ -677,6 +678,7 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
             break
         found = _through_folds(family, pts, target, eps, folds, max_steps - steps, spent)
         if found is None:
+            lost = True
             break
         pts.extend(found)
         step = 0.02 * abs(pts[-1].lam)
@@ -689,6 +691,8 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
             why = f" (its budget of {max_solves} linear solves spent)"
         elif steps >= max_steps:
             why = f" (its {max_steps} steps taken)"
+        elif lost:
+            why = " (the steps could not be shortened further: a fold, which pseudo-arclength did not follow)"
         else:
             why = ""
         if folds and why:
