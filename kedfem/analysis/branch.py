@@ -676,7 +676,8 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
         # the natural step cannot be shortened further: a fold; follow the branch through it
         if len(pts) < 2:
             break
-        found = _through_folds(family, pts, target, eps, folds, max_steps - steps, spent)
+        found = _through_folds(family, pts, target, eps, folds, max_steps - steps, spent,
+                               None if progress is None else (lambda lam: progress(lam, start.lam, steps)))
         if found is None:
             lost = True
             break
@@ -705,10 +706,11 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
 
 
 def _through_folds(family: Family, pts: list, target: float, eps: float, folds: list, budget: int,
-                   spent=lambda: False):
+                   spent=lambda: False, progress=None):
     """Pseudo-arclength from the last two points until the branch crosses ``target`` again:
     the points on the way, the last one at ``target`` (Newton at fixed parameter from the
-    interpolation); None when it does not get there."""
+    interpolation); None when it does not get there. ``progress(lam)``, if given, after each point
+    (a bar that froze for 8-25 s through a fold, a new user found)."""
     tr = Tracker(family, eps=max(eps, CORRECTOR_EPS))
     a, b = pts[-2], pts[-1]
     tr.set_scale(b.x, b.lam)
@@ -723,6 +725,8 @@ def _through_folds(family: Family, pts: list, target: float, eps: float, folds: 
         q = tr.advance(p, t)
         if q is None:
             return None
+        if progress is not None:
+            progress(q.lam)
         t = q.tangent
         d = math.copysign(1.0, t[-1])
         if d != prev_dir:

@@ -33,7 +33,7 @@ from ..checks import flag, integer, real
 from ..errors import InputError, KedError, NonlinearSolveError
 from ..solvers import schemes
 from .branch import Family, Point, Tracker, classify, in_unit
-from .results import LinkPeaks, PeriodicResult
+from .results import PeriodicResult
 from .scene import Scene
 from ..units import RPM_PER_RAD_S
 
@@ -350,7 +350,7 @@ def _track(family: Family, p0: Point, p1: Point, lo: float, hi: float, max_point
     p1.s = tr.norm(p1.x - p0.x, p1.lam - p0.lam)
     pts = [p0, p1]
     found = []
-    end = f"reached the end of the range"
+    end = "reached the end of the range"
     up = hi > lo
     while len(pts) < max_points:
         p = pts[-1]
@@ -482,8 +482,9 @@ def continuation(scene, lo: float, hi: float, *, parameter: str = "speed", steps
                           disable=disable) as bar2:
                     sub = _period2(scene_of, scheme, n, flip, hi, eps, max_points, errors, t0, bar2)
             except KedError as e:
-                log.warning("continuation: the period-2 response past the flip at %.6g was not found: %s",
-                            flip.lam, e)
+                shown = (RPM_PER_RAD_S, "rpm") if parameter == "speed" else (1.0, unit)
+                log.warning("continuation: the period-2 response past the flip at %s was not found: %s",
+                            in_unit(flip.lam, shown), e)
     return Branch(parameter, unit, points, bifs, n, scheme.name, 1, sub, end, time.perf_counter() - t0,
                   family.solves)
 

@@ -140,8 +140,10 @@ def solve(scene: Scene, progress: bool | None = None, *, start=None) -> Periodic
     start : PeriodicResult, optional
         A response of the same mechanism (at another speed, on other time elements) the
         non-linear iteration starts from, read at the same fractions of the cycle (a
-        neighbour on a branch: :func:`kedfem.continuation` uses it). Default: the linear
-        response.
+        neighbour on a branch: :func:`kedfem.continuation` uses it). Where Newton does not
+        converge from it, the continuation in speed starts from its speed if that is below the
+        scene's (a start above it is only Newton's start: going down in speed, the continuation
+        climbs from a fraction of the speed on its own). Default: the linear response.
 
     Returns
     -------
@@ -288,6 +290,9 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
             x0 = phase_sample(self.start.sampler.discrete, ti, sc.period)
             origin = "the given start"
         out = prob.solve(x0, eps=eps, max_iter=sc.max_iter, method=sc.nonlinear_method, rate=self._rate)
+        if out.converged and origin == "the given start" and not self.path:  # (res.path: not from the linear response)
+            self.path = (f"Newton from the given start (its response at "
+                         f"{abs(self.start.model.mech.drives[0].speed) * RPM_PER_RAD_S:.4g} rpm)")
         if out.converged and out.rate is not None:
             self._rate = out.rate  # the finest level's Newton rate predicts the next level's changes
         if prob.state and not out.converged and sc.nonlinear_method == "newton" and n >= self._need:
@@ -408,6 +413,9 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
                "over speed and says where it ends or loses its stability")
         if sc.nonlinear_method != "newton":
             nxt = "nonlinear_method='newton' (the default) continues in speed by itself; " + nxt
+        else:  # what a new user found cheaper than both: a run-up of their own, result to result
+            nxt += ("; or solve at speeds on the way up and start each from the last: kf.solve(scene_at_next_speed, "
+                    "start=result)")
         return NonlinearSolveError(
             f"{sc.mech.name}: no periodic response found at {w * rpm:.6g} rpm: {what}{highest}. Tried: {tried}. "
             f"Next: {nxt}", highest=self.highest, tried=tried)
