@@ -192,3 +192,19 @@ def test_newton_stops_when_its_line_search_creeps_and_not_while_it_gains():
     out = nonlinear.newton(G, 4, 2, 1.0, eps=1e-6, x0=start, merit=merit, max_iter=50)
     assert out.converged, out.message
     assert np.linalg.norm(out.solution - Us) / np.linalg.norm(Us) <= 1e-5
+
+
+def test_newton_full_steps_never_stall():
+    """Full steps may raise the change on the way to the solution (``sinh(u - 1) = 0`` from 20:
+    the change falls slowly, then rises before it converges); only damped steps can stall."""
+    def G(U, V, it):
+        Un = U - np.tanh(U - 1.0)  # Newton's step on sinh(u - 1) = 0: u - sinh / cosh
+        return Un, Un, V
+
+    def merit(U, V):
+        return float(np.abs(np.sinh(U - 1.0)).sum())
+
+    start = (np.full((4, 2), 20.0), np.zeros((4, 2)))
+    out = nonlinear.newton(G, 4, 2, 1.0, eps=1e-8, x0=start, merit=merit, max_iter=60)
+    assert out.converged, out.message
+    assert np.allclose(out.solution, 1.0, atol=1e-6)

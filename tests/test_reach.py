@@ -24,6 +24,7 @@ class Curve:
         self.a, self.offset, self.at = a, offset, at
         self.solves = 0
         self.solved_at = []
+        self.stepped_at = []  # first corrections and arclength steps
 
     def F(self, x, lam):
         return x + self.a * math.sin(x) - lam - (self.offset if lam == self.at else 0.0)
@@ -36,6 +37,7 @@ class Curve:
 
     def step(self, x, lam):
         self.solves += 1
+        self.stepped_at.append(lam)
         return types.SimpleNamespace(floquet_multipliers=np.array([0.5])), np.array([self.G(x[0], lam), 0.0])
 
     def solve(self, lam, x0, eps, max_iter=30):
@@ -96,10 +98,31 @@ def test_a_step_onto_the_target_is_not_rejected_on_its_first_correction():
     """The target's problem may differ from those on the way (a level's elements snapped to the
     data's kinks): its first correction then has a floor that no shorter step lowers. The step
     onto it goes to Newton's iteration whatever its first correction."""
-    c = FarStart(0.5, offset=4.0, at=20.0)  # a first correction of about 0.2 from any neighbour
+    c = FarStart(0.5, offset=10.0, at=20.0)  # a first correction of about 0.27 from any neighbour
     r = branch.reach(c, 20.0, eps=1e-10)
     assert r.point.lam == 20.0 and abs(c.F(r.point.x[0], 20.0)) < 1e-8
-    assert c.solved_at.count(20.0) == 1  # the first step onto it
+    # one first correction there and one iteration (rejected, it was tried 7-8 times and reached
+    # by the arclength corrector's Newton at last)
+    assert c.stepped_at.count(20.0) == 1 and c.solved_at.count(20.0) == 1
+
+
+@pytest.mark.parametrize("a, target", [(2.0, 40.0), (2.0, -40.0), (1.2, -30.0)])
+def test_reach_a_response_curve_that_turns_often_either_way(a, target):
+    """``x + 2 sin x`` turns at eight folds on the way to 40 (a limit of four failed it); a
+    negative target (a drive turning the other way) goes through its folds as well (the target's
+    crossing was looked for in the positive direction only: -30 failed, beyond it)."""
+    c = FarStart(a)
+
+    def solve(lam, x0, eps, max_iter=30):  # the linear response converges only near zero
+        if x0 is None and abs(lam) > 3.0:
+            c.solved_at.append(lam)
+            return types.SimpleNamespace(iterations=max_iter), None
+        return Curve.solve(c, lam, x0, eps, max_iter)
+
+    c.solve = solve
+    r = branch.reach(c, target, eps=1e-10)
+    assert r.point.lam == target and abs(c.F(r.point.x[0], target)) < 1e-8
+    assert len(r.folds) >= (6 if a == 2.0 else 2)
 
 
 def test_a_continuation_out_of_solves_says_so():

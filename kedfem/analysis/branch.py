@@ -642,7 +642,7 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
     if progress is not None:
         progress(start.lam, start.lam, steps)
     aim = PREDICTOR_CHANGE
-    lost = False  # pseudo-arclength did not follow the branch through a fold
+    lost = ""  # why pseudo-arclength did not get through a fold
     while abs(pts[-1].lam) < abs(target) * (1 - 1e-12) and steps < max_steps and not spent():
         new = sign * min(abs(target), abs(pts[-1].lam) + step)
         on_way = abs(new) < abs(target) * (1 - 1e-12)
@@ -678,8 +678,10 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
             break
         found = _through_folds(family, pts, target, eps, folds, max_steps - steps, spent,
                                None if progress is None else (lambda lam: progress(lam, start.lam, steps)))
-        if found is None:
-            lost = True
+        if isinstance(found, str):  # why it did not get there
+            lost = found
+            if found == "spent" and not spent():  # its points took the steps left
+                steps = max_steps
             break
         pts.extend(found)
         step = 0.02 * abs(pts[-1].lam)
@@ -692,8 +694,10 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
             why = f" (its budget of {max_solves} linear solves spent)"
         elif steps >= max_steps:
             why = f" (its {max_steps} steps taken)"
-        elif lost:
+        elif lost == "lost":
             why = " (the steps could not be shortened further: a fold, which pseudo-arclength did not follow)"
+        elif lost == "target":
+            why = " (pseudo-arclength crossed it, and Newton at it did not converge from there)"
         else:
             why = ""
         if folds and why:
@@ -709,8 +713,10 @@ def _through_folds(family: Family, pts: list, target: float, eps: float, folds: 
                    spent=lambda: False, progress=None):
     """Pseudo-arclength from the last two points until the branch crosses ``target`` again:
     the points on the way, the last one at ``target`` (Newton at fixed parameter from the
-    interpolation); None when it does not get there. ``progress(lam)``, if given, after each point
-    (a bar that froze for 8-25 s through a fold, a new user found)."""
+    interpolation); else why not: ``"lost"`` (the arclength step fell below its least), ``"target"``
+    (Newton at the target from the interpolation failed), ``"spent"`` (solves or steps spent).
+    ``progress(lam)``, if given, after each point (a bar that froze for 8-25 s through a fold, a
+    new user found)."""
     tr = Tracker(family, eps=max(eps, CORRECTOR_EPS))
     a, b = pts[-2], pts[-1]
     tr.set_scale(b.x, b.lam)
@@ -719,12 +725,13 @@ def _through_folds(family: Family, pts: list, target: float, eps: float, folds: 
     start_dir = prev_dir = math.copysign(1.0, t[-1])
     turns = 0
     out = []
+    sign = math.copysign(1.0, target)
     for _ in range(max(budget, 1)):
         if spent():
-            return None
+            return "spent"
         q = tr.advance(p, t)
         if q is None:
-            return None
+            return "lost"
         if progress is not None:
             progress(q.lam)
         t = q.tangent
@@ -733,15 +740,15 @@ def _through_folds(family: Family, pts: list, target: float, eps: float, folds: 
             folds.append(p.lam)
             prev_dir = d
             turns += 1
-        if (abs(p.lam) - abs(target)) * (abs(q.lam) - abs(target)) <= 0 and d > 0 \
+        if (abs(p.lam) - abs(target)) * (abs(q.lam) - abs(target)) <= 0 and d * sign > 0 \
                 and abs(q.lam) >= abs(target):
             tau = (target - p.lam) / (q.lam - p.lam)
             end = tr.fixed(p.x + tau * (q.x - p.x), target)
-            return None if end is None else out + [end]
+            return "target" if end is None else out + [end]
         if turns >= 2 and d == start_dir and len(out) >= 2 and abs(q.lam) > abs(out[-1].lam):
             # through the folds and forward again: natural continuation goes on from here
             out.append(q)
             return out
         out.append(q)
         p = q
-    return None
+    return "spent"
