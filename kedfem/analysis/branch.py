@@ -41,7 +41,7 @@ import numpy as np
 from ..errors import InstabilityWarning, KedError, UnboundedResponseError
 from ..fe.model import FEModel
 from ..motion.kinematics import Cycle
-from .problem import PeriodicProblem, damping_field
+from .problem import PeriodicProblem, _relative_change, damping_field
 
 __all__ = ["Family", "Point", "Crossing", "Tracker", "damping_field", "classify", "in_unit", "MAX_POINTS"]
 
@@ -529,11 +529,7 @@ def _first_correction(family: Family, xp: np.ndarray, lam: float) -> tuple[np.nd
     and the relative change of its displacements (the predictor's error, as Newton's iteration
     measures its changes)."""
     _d, g = family.step(xp, lam)
-    U, _V = family.unpack(xp, lam)
-    Un, _Vn = family.unpack(g, lam)
-    nn = float(np.linalg.norm(Un))
-    dd = float(np.linalg.norm(Un - U))
-    return g, (0.0 if dd == 0.0 else (dd / nn if nn > 0 else math.inf))
+    return g, _relative_change(family.unpack(xp, lam)[0], family.unpack(g, lam)[0])
 
 
 def in_unit(value: float, unit: tuple = (1.0, ""), digits: int = 6) -> str:
@@ -690,18 +686,13 @@ def reach(family: Family, target: float, *, eps: float, lowest: float | None = N
             progress(pts[-1].lam, start.lam, steps)
     last = pts[-1]
     if abs(last.lam - target) > 1e-12 * abs(target):
-        if spent():
-            why = f" (its budget of {max_solves} linear solves spent)"
-        elif steps >= max_steps:
-            why = f" (its {max_steps} steps taken)"
-        elif lost == "lost":
-            why = " (the steps could not be shortened further: a fold, which pseudo-arclength did not follow)"
-        elif lost == "target":
-            why = " (pseudo-arclength crossed it, and Newton at it did not converge from there)"
-        else:
-            why = ""
-        if folds and why:
-            why = why[:-1] + f", through folds at {', '.join(fmt(f) for f in folds)})"
+        reason = (f"its budget of {max_solves} linear solves spent" if spent() else
+                  f"its {max_steps} steps taken" if steps >= max_steps else
+                  {"lost": "the steps could not be shortened further: a fold, which pseudo-arclength did not follow",
+                   "target": "pseudo-arclength crossed it, and Newton at it did not converge from there"}.get(lost, ""))
+        if reason and folds:
+            reason += f", through folds at {', '.join(fmt(f) for f in folds)}"
+        why = f" ({reason})" if reason else ""
         raise NonlinearSolveError(
             f"the continuation from {fmt(start.lam)} stalled at {fmt(last.lam)} before the target "
             f"{fmt(target)}{why}", highest=abs(last.lam),

@@ -32,8 +32,8 @@ class ContinuationProgress:
     steps taken, and the seconds left at the pace since the start was found (the speed still to
     cover times the seconds per rad/s so far: the step grows on an easy branch, so this errs
     long). Shown on the solve's progress bar; logged once, from the third step on (steps whose
-    iteration failed count, those rejected on their first correction do not) and a tenth of the way (:data:`SAID_AFTER`), when above
-    :data:`LONG_CONTINUATION`.
+    iteration failed count, those rejected on their first correction do not) and a tenth of the
+    way (:data:`SAID_AFTER`), when above :data:`LONG_CONTINUATION`.
 
     Parameters
     ----------
