@@ -1,8 +1,8 @@
 """Scattering element terms into q-space through sparse operators (COO -> CSR, built once).
 
 The element DOF index map of a group (``(n_el, m)``) gives one sparse
-operator per group; dense batches (over time nodes) are scattered with
-segment sums, single instants as scipy.sparse CSR matrices.
+operator per group; dense batches (over time nodes) are scattered by a 0/1
+summing operator per group (CSR), single instants as scipy.sparse CSR matrices.
 """
 
 from __future__ import annotations
@@ -42,14 +42,33 @@ def column_patterns(active: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
     return [(np.flatnonzero(which == k), np.flatnonzero(pat)) for k, pat in enumerate(patterns) if pat.any()]
 
 
-def _plan(flat_targets, keep):
-    """(gather order, segment starts, targets) of the kept entries, equal targets adjacent."""
+@dataclass(frozen=True)
+class _Plan:
+    """How a group's flat element entries sum into global entries.
+
+    ``targets`` (k,) are the global flat entries reached; ``sums`` (k, n_entries) is the 0/1 CSR
+    operator whose row ``i`` picks the entries landing on ``targets[i]``, in ascending entry
+    order (a sum in the order of ``np.add.reduceat`` over the sorted gather: bit-identical, and
+    3x faster than the gather with its reduction at the four-bar's sizes).
+    """
+
+    targets: np.ndarray
+    sums: sp.csr_matrix
+
+    def add(self, data2d: np.ndarray, out2d: np.ndarray) -> None:
+        """``out2d[:, targets] +=`` the sums of ``data2d`` (nt, n_entries) (nt, k)."""
+        if self.targets.size:
+            out2d[:, self.targets] += (self.sums @ data2d.T).T
+
+
+def _plan(flat_targets, keep) -> _Plan:
+    """The :class:`_Plan` of the kept entries of ``flat_targets`` (n_entries,)."""
     idx = np.flatnonzero(keep)
     tgt = flat_targets[idx]
-    order = np.argsort(tgt, kind="stable")
-    idx, tgt = idx[order], tgt[order]
-    starts = np.flatnonzero(np.r_[True, tgt[1:] != tgt[:-1]]) if tgt.size else np.zeros(0, int)
-    return idx, starts, tgt[starts]
+    targets, row = np.unique(tgt, return_inverse=True)
+    sums = sp.csr_matrix((np.ones(idx.size), (np.ravel(row), idx)), shape=(targets.size, flat_targets.size))
+    sums.sort_indices()
+    return _Plan(targets, sums)
 
 
 def _matrix_plan(colarr, N: int):
@@ -63,11 +82,11 @@ class Scatter:
 
     # --------------------------------------------------------------- scatter
     def _operators(self, gname: str):
-        """Segment sums of a group's element entries: (gather order, segment starts, targets).
+        """The :class:`_Plan` of a group's element matrices and of its element vectors.
 
-        Entries ``(element, i, j)`` that land on the same global entry are
-        adjacent after the gather, so one ``np.add.reduceat`` sums them; the
-        padding column ``N`` (an element DOF with no unknown) is dropped.
+        Entries ``(element, i, j)`` that land on the same global entry are summed by
+        one row of the plan's operator; the padding column ``N`` (an element DOF with no
+        unknown) is dropped.
         """
         if gname in self._scatter_cache:
             return self._scatter_cache[gname]
@@ -79,14 +98,14 @@ class Scatter:
         return mat, vec
 
     def _sub_operator(self, gname: str, cols: np.ndarray):
-        """Segment sums of a group's element matrices restricted to element columns ``cols``."""
+        """The :class:`_Plan` of a group's element matrices restricted to element columns ``cols``."""
         key = (gname, cols.tobytes())
         if key not in self._scatter_cache:
             self._scatter_cache[key] = _matrix_plan(self._static_layout(gname).cols[:, cols], self.n_dof)
         return self._scatter_cache[key]
 
     def _sub_vector_operator(self, gname: str, cols: np.ndarray):
-        """Segment sums of a group's element vectors restricted to element columns ``cols``."""
+        """The :class:`_Plan` of a group's element vectors restricted to element columns ``cols``."""
         key = (gname, cols.tobytes(), "vector")
         if key not in self._scatter_cache:
             c = self._static_layout(gname).cols[:, cols].reshape(-1)
@@ -98,10 +117,10 @@ class Scatter:
         :meth:`scatter_matrix` and :meth:`scatter_vector` see to it)."""
         flat = out.reshape(terms.nt, -1)
         for rows, cols, data in terms.parts:
-            idx, starts, targets = (self._sub_operator if matrix else self._sub_vector_operator)(gname, cols)
-            if idx.size:
-                flat[rows[:, None], targets[None, :]] += np.add.reduceat(
-                    np.ascontiguousarray(data).reshape(rows.size, -1)[:, idx], starts, axis=1)
+            plan = (self._sub_operator if matrix else self._sub_vector_operator)(gname, cols)
+            if plan.targets.size:
+                flat[rows[:, None], plan.targets[None, :]] += (
+                    plan.sums @ np.ascontiguousarray(data).reshape(rows.size, -1).T).T
         return out
 
     def _scatter_active(self, gname: str, data: np.ndarray, out: np.ndarray) -> None:
@@ -117,12 +136,6 @@ class Scatter:
         active = nz.any(axis=(1, 2)) | nz.any(axis=(1, 3))  # (nt, m)
         parts = tuple((rows, cols, data[rows][:, :, cols][:, :, :, cols]) for rows, cols in column_patterns(active))
         self._scatter_parts(gname, ActiveTerms(data.shape[0], parts), out, True)
-
-    @staticmethod
-    def _segment_add(plan, data2d, out2d):
-        idx, starts, targets = plan
-        if idx.size:
-            out2d[:, targets] += np.add.reduceat(data2d[:, idx], starts, axis=1)
 
     def scatter_matrix(self, gname: str, data: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Scatter element matrices ``(nt, n_el, m, m)`` (or :class:`ActiveTerms`) to dense
@@ -143,7 +156,7 @@ class Scatter:
         if data.shape[-1] >= ACTIVE_WIDTH and data.shape[0] > 1:
             self._scatter_active(gname, data, out)
             return out
-        self._segment_add(mat, np.ascontiguousarray(data).reshape(nt, -1), out.reshape(nt, N * N))
+        mat.add(np.ascontiguousarray(data).reshape(nt, -1), out.reshape(nt, N * N))
         return out
 
     def scatter_vector(self, gname: str, data: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
@@ -158,7 +171,7 @@ class Scatter:
         nt = data.shape[0]
         if out is None:
             out = np.zeros((nt, self.n_dof))
-        self._segment_add(vec, np.ascontiguousarray(data).reshape(nt, -1), out)
+        vec.add(np.ascontiguousarray(data).reshape(nt, -1), out)
         return out
 
     def scatter_sparse(self, gname: str, data: np.ndarray) -> sp.csr_matrix:
