@@ -233,10 +233,12 @@ class Assembler:
         return self._axial
 
     # ------------------------------------------------------------ element terms
-    def _transform(self, gname, acc: GroupTerms, mo, nt, key=None, elements=None):
-        """q-space terms of a group's elements (those of bucket ``key``, see ``FEModel.buckets``)."""
+    def _transform(self, gname, acc: GroupTerms, mo, nt, key=None, elements=None, structural=True):
+        """q-space terms of a group's elements (those of bucket ``key``, see ``FEModel.buckets``);
+        without ``structural`` the structural stiffness ``Ks`` is left out (a modal damping field
+        or no damping: nothing reads it)."""
         model = self.model
-        terms = [acc.get(gname, k) for k in ("M", "C", "K", "Ks", "Q")]
+        terms = [acc.get(gname, k) if k != "Ks" or structural else None for k in ("M", "C", "K", "Ks", "Q")]
         if key is not None and key != gname:
             terms = [None if x is None else x[:, elements] for x in terms]
         M, C, K, Ks, Q = terms
@@ -328,13 +330,14 @@ class Assembler:
             e.element_terms(self, chunk)
         return chunk
 
-    def _to_q(self, chunk: Chunk) -> dict:
-        """q-space terms of every element group of ``chunk``, by group name."""
+    def _to_q(self, chunk: Chunk, structural: bool = True) -> dict:
+        """q-space terms of every element group of ``chunk``, by group name (``Ks`` only with
+        ``structural``)."""
         mo, nt = chunk.motion, chunk.idx.size
         dyn = self.model.has_moving_maps() or self.model.has_offsets()
         self._forms = self.model.entity_forms(mo) if dyn else None
         try:
-            out = {key: self._transform(g, chunk.acc, mo, nt, key, els)
+            out = {key: self._transform(g, chunk.acc, mo, nt, key, els, structural)
                    for g in self.model.groups for key, els in self.model.buckets(g).items()}
         finally:
             self._forms = None
@@ -424,9 +427,9 @@ class Assembler:
         idx = np.arange(self.motion.n) if idx is None else np.asarray(idx)
         nt, N = idx.size, self.model.n_dof
         chunk = self._chunk(idx)
-        groups = self._to_q(chunk)
         field = self.damping_field if isinstance(self.damping, ModalDamping) else None
         keys = ("M", "C", "K") if field is not None or self.damping is None else ("M", "C", "K", "Ks")
+        groups = self._to_q(chunk, structural="Ks" in keys)
         tot = {k: np.zeros((nt, N, N)) for k in keys}
         tot["Q"] = np.zeros((nt, N))
         for gname, out in groups.items():
