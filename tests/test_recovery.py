@@ -1,5 +1,6 @@
 """Section forces by element equilibrium (kedfem/analysis/recovery.py) against closed forms and mesh convergence."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -124,6 +125,42 @@ def test_modal_damping_field_matches_the_eigenproblem_at_any_instant():
     assert f2.constant
     C = f2.at(np.array([0.0, 0.01, 0.02]))
     assert np.array_equal(C[0], C[1]) and np.array_equal(C[0], C[2])
+
+
+def test_a_damping_field_read_at_another_speed_is_the_eigenproblem_there():
+    """A continuation in speed builds its modal damping field once (``Family(in_speed=True)``):
+    read at another speed's period it must be that speed's eigenproblem at every instant, also
+    where the interpolant fell back to exact matrices (the wrapped ``exact`` takes the other
+    speed's instants), and a family in another parameter must not reuse it."""
+    from kedfem.analysis import pipeline
+    from kedfem.analysis.branch import Family
+    from kedfem.fe.assembler import Assembler
+    from kedfem.fe.modal_damping import DampingField
+    from kedfem.io.scenefile import preset
+    from kedfem.solvers import schemes
+    p = preset("four_bar")
+    base = kf.Scene(mechanisms.build("four_bar"), effects=p.effects, damping=p.damping)
+    field = pipeline._Run(base).damping_field(48)
+    other = kf.Scene(mechanisms.build("four_bar"), effects=p.effects, damping=p.damping, speed=2.7 * base.mech.drives[0].speed)
+    run = pipeline._Run(other)
+    t = np.random.default_rng(2).random(7) * other.period
+    asm = Assembler(run.model, run.cycle.at(t), (), damping=other.damping)
+    exact = asm.damping_matrix(*asm.structural())
+    d = np.sqrt(np.abs(np.einsum("tii->ti", exact)).max(axis=0))
+    moved = field.at_period(other.period)
+    assert np.max(np.abs(moved.at(t) - exact) / np.outer(d, d)) < 1e-3 * other.rtol
+    assert np.max(np.abs(field.at(t * (base.period / other.period)) - moved.at(t))) == 0.0
+    fallback = DampingField(field._exact, base.period, max_samples=8)  # exact matrices at every instant
+    assert fallback.samples == 0
+    assert np.max(np.abs(fallback.at_period(other.period).at(t) - exact) / np.outer(d, d)) < 1e-10  # (eigenproblems: round-off)
+    scheme = schemes.get("radau3")
+    w = base.mech.drives[0].speed
+    for in_speed in (True, False):
+        fam = Family(lambda s: dataclasses.replace(base, speed=s), 24, scheme, in_speed=in_speed)
+        f1 = fam.problem(w).assembler.damping_field
+        f2 = fam.problem(1.3 * w).assembler.damping_field
+        assert f2.period == pytest.approx(f1.period / 1.3, rel=1e-14)
+        assert (fam._field is not None and fam._field[0] is f1) == in_speed  # built once, or at each speed
 
 
 def test_piecewise_damping_field_settles_between_kinks_where_harmonics_do_not():

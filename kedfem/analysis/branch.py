@@ -40,6 +40,7 @@ import numpy as np
 
 from ..errors import InstabilityWarning, KedError, UnboundedResponseError
 from ..fe.model import FEModel
+from ..fe.modal_damping import DampingField
 from ..motion.kinematics import Cycle
 from .problem import PeriodicProblem, _relative_change, damping_field
 
@@ -113,13 +114,19 @@ class Family:
     scheme : kedfem.solvers.schemes.Scheme
     periods : int
         Drive cycles per period of the response (2: period doubled).
+    in_speed : bool
+        ``lam`` is the drive speed and nothing else changes with it: the modal damping field,
+        which follows the configuration at each phase, is built once and read at every speed
+        (:meth:`kedfem.fe.modal_damping.DampingField.at_period`).
     """
 
     #: problems kept, the most recently used (besides the pinned ones)
     KEEP = 6
 
-    def __init__(self, scene_of, n: int, scheme, periods: int = 1):
+    def __init__(self, scene_of, n: int, scheme, periods: int = 1, in_speed: bool = False):
         self.scene_of, self.n, self.scheme, self.periods = scene_of, int(n), scheme, int(periods)
+        self.in_speed = bool(in_speed)
+        self._field = None  # (the first trigonometric damping field made, its turning sense) (in_speed)
         self._cache: OrderedDict = OrderedDict()
         self._pinned: dict = {}
         self.solves = 0
@@ -147,7 +154,13 @@ class Family:
         model = FEModel(sc.mech, reduction=sc.reduction)
         cycle = Cycle(sc.mech)
         ni = self.scheme.instants(self.n, sc.period * self.periods).size
-        field = damping_field(sc, model, cycle, ni)  # where it is cheaper than eigenproblems
+        turn = math.copysign(1.0, sc.mech.drives[0].speed)  # (the other way, the phases run backwards)
+        if self._field is not None and self._field[1] == turn:
+            field = self._field[0].at_period(sc.period)
+        else:
+            field = damping_field(sc, model, cycle, ni)  # where it is cheaper than eigenproblems
+            if self.in_speed and isinstance(field, DampingField):  # (no kinks: a block's are set in time)
+                self._field = (field, turn)
         prob = PeriodicProblem(sc, model, cycle, self.scheme, self.n, damping_field=field, periods=self.periods)
         self._cache[key] = prob
         while len(self._cache) > self.KEEP:

@@ -445,7 +445,7 @@ def continuation(scene, lo: float, hi: float, *, parameter: str = "speed", steps
                          f"uses {scheme.name}")
     n = _elements(scene_of, lo, hi, steps, scheme)
     eps = min(sc0.eps, 1e-6)
-    family = Family(scene_of, n, scheme)
+    family = Family(scene_of, n, scheme, in_speed=parameter == "speed")
     from tqdm.auto import tqdm
     import sys
     bar = tqdm(desc="continuation", unit="point", file=sys.stderr, delay=2.0, leave=False,

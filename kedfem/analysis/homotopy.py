@@ -110,7 +110,7 @@ class Homotopy:
                     "; a result at a nearby speed, kf.solve(scene, start=result), starts there instead")
         if self._bar is not None:
             self._bar.set_postfix_str(f"{prob.n} time elements, continuation in speed", refresh=True)
-        fam = Family(lambda s: dataclasses.replace(sc, speed=s), prob.n, self.scheme)
+        fam = Family(lambda s: dataclasses.replace(sc, speed=s), prob.n, self.scheme, in_speed=True)
         fam.pin(w, prob)  # the target on this level's own elements (a continuation of more speeds than
         # the family keeps evicted it, and the level came out on uniform elements where it has kinks)
         t0 = time.perf_counter()

@@ -31,6 +31,7 @@ by Chebyshev series instead.
 
 from __future__ import annotations
 
+import copy
 import logging
 import math
 from typing import Callable
@@ -215,6 +216,21 @@ class DampingField:
         if self._coef is None:
             return self._exact(t)
         return self._interpolate(t)
+
+    def at_period(self, period: float) -> "DampingField":
+        """This field on a cycle of ``period`` [s]: the same matrices at the same phase ``t / period``.
+
+        For the same mechanism at another drive speed (every drive scaled alike, as
+        :meth:`kedfem.model.mechanism.Mechanism.with_speed` does): the modal damping comes from the
+        structural mass and stiffness of the configuration, which the phase alone sets, so a
+        continuation in speed builds its field once (a tenth of the four-bar's run-up at 350 rpm
+        went to building it again at every speed).
+        """
+        new = copy.copy(self)
+        new.period = float(period)
+        base, scale = self._exact, self.period / float(period)
+        new._exact = lambda t: base(np.asarray(t, dtype=float) * scale)
+        return new
 
 
 def _full(c: np.ndarray, iu, N: int) -> np.ndarray:
