@@ -36,6 +36,9 @@ def test_mesh_error_of_a_four_element_mesh_is_of_the_right_size(name):
                 checked += 1
     assert est.peak < 1e-3   # and it says so
     assert checked >= (3 if name == "four_bar" else 0)
+    # the result's summary shows the check once made (a new user's read "mesh error: not estimated")
+    text = res.summary()
+    assert "mesh error (not in the +- columns)" in text and "mesh error: not estimated" not in text
 
 
 def test_links_of_one_element_are_compared_with_two_and_the_mechanism_is_left_alone():

@@ -174,6 +174,24 @@ def test_mathieu_first_tongue(q):
         assert stability_verdict(rho, abs(rho - rho_c)) == want, (a, c, rho, rho_c)
 
 
+def test_an_instability_warning_names_how_the_response_grows():
+    """Inside Mathieu's first tongue (between scipy's b1 and a1) the multiplier is real negative:
+    the period doubles; inside the second (b2 .. a2) it is real positive. A new user's flip was
+    reported as a bare |mu| > 1."""
+    sc = schemes.get("radau3")
+    q = 1.0
+    for a, want, not_want in ((0.5 * (mathieu_a(1, q) + mathieu_b(1, q)), "period doubling", "real positive"),
+                              (0.5 * (mathieu_a(2, q) + mathieu_b(2, q)), "real positive", "period doubling")):
+        ti = sc.instants(32, math.pi)
+        Kt = (a - 2 * q * np.cos(2 * ti))[:, None, None]
+        with pytest.warns(InstabilityWarning) as caught:
+            d = sc.solve(np.eye(1), np.full((1, 1), 0.01), Kt, np.ones((ti.size, 1)), math.pi, 32)
+        mu = d.floquet_multipliers[np.argmax(np.abs(d.floquet_multipliers))]
+        text = " ".join(str(w.message) for w in caught)
+        assert want in text and not_want not in text, (a, mu, text)
+        assert (mu.real < 0) == (want == "period doubling") and abs(mu.imag) < 1e-9 * abs(mu)
+
+
 @pytest.fixture(scope="module")
 def four_bar():
     import mechanisms

@@ -200,7 +200,9 @@ def mesh_error(res, factor: int = 2) -> MeshError | None:
             return abs(a - b) / abs(a) / div if (math.isfinite(a) and a != 0) else None
 
         out.append(LinkMeshError(p.link, e, ec, rel(f.deflection, p.deflection), rel(f.stress, p.stress), rate))
-    return MeshError(tuple(out), MESH_RATE)
+    est = MeshError(tuple(out), MESH_RATE)
+    res._cache["mesh_error"] = est  # res.summary() shows the last one (a new user's read "not estimated")
+    return est
 
 
 class _RestrictedDiscrete:

@@ -66,10 +66,14 @@ def check_result(res) -> list[str]:
         lk = mech.links[p.link]
         ratio = p.deflection / lk.length
         if not math.isfinite(ratio) or ratio > MAX_DEFLECTION_RATIO:
-            hint = ("" if "geometric_nonlinearity" in res.scene.effects else "add geometric_nonlinearity, or ")
+            if "geometric_nonlinearity" in res.scene.effects:  # (a new user read "small-deflection" with it on)
+                theory = ("the von Karman strains of geometric_nonlinearity assume moderate rotations of the "
+                          "elements: check it on a finer mesh (kf.mesh_error), and the units: lengths in m, E in Pa")
+            else:
+                theory = ("small-deflection (linear) theory is doubtful: add geometric_nonlinearity, or check "
+                          "the units: lengths in m, E in Pa")
             out.append(f"link '{p.link}': peak deflection {p.deflection * 1e3:.4g} mm is {100 * ratio:.3g} % of its "
-                       f"length (> {100 * MAX_DEFLECTION_RATIO:g} %): small-deflection theory is doubtful "
-                       f"({hint}check the units: lengths in m, E in Pa)")
+                       f"length (> {100 * MAX_DEFLECTION_RATIO:g} %): {theory}")
         Sy = lk.material.yield_strength
         if Sy and math.isfinite(p.stress) and p.stress > Sy:
             out.append(f"link '{p.link}': peak stress {p.stress / 1e6:.4g} MPa exceeds the yield strength "

@@ -349,12 +349,14 @@ class PeriodicResult(Displacements, SectionForces, BlockForces, PeakRefinement):
 
     def summary(self, n_modes: int = 4) -> str:
         """The summary table ``kedfem run`` prints: scene, frequencies over the cycle, peaks with
-        their errors, fatigue, stability, iteration (no mesh check, no files)."""
+        their errors, fatigue, stability, iteration (no files; the mesh error where
+        :func:`kedfem.mesh_error` was called on this result, its last call)."""
         from .fatigue import fatigue_table
         n_modes = integer("summary", "n_modes", n_modes, 1, MAX_MODES)
         freqs = self.frequencies(n_modes, nodes=list(range(0, self.n, max(1, self.n // 180))))
         return hook("format_summary")(self, freqs, self.peaks(), stages={}, files=[], out_dir=None, source="python",
-                              scene_time=self.timings.total, fatigue=fatigue_table(self), loads=self.loads())
+                              scene_time=self.timings.total, fatigue=fatigue_table(self), loads=self.loads(),
+                              mesh=self._cache.get("mesh_error"))
 
     def loads(self, elastic: bool = True):
         """Bearing forces and drive torques over the cycle, rigid-body and (``elastic``) from the

@@ -155,7 +155,7 @@ def solve_cyclic(elems, per_element: float, *, method: str = "auto", memory_budg
     ImP = np.eye(m) - pass1.Phi
     Bal, dsc, condition = _balanced_condition(ImP)
     ill_conditioned = _check_resonance(mult, condition, max_condition)
-    method = _choose_method(method, rho, ill_conditioned)
+    method = _choose_method(method, rho, ill_conditioned, mult[int(np.argmax(np.abs(mult)))])
     timings["floquet"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()

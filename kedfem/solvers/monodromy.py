@@ -113,7 +113,22 @@ def _check_resonance(mult: np.ndarray, condition: float, max_condition: float) -
     return False
 
 
-def _choose_method(method: str, rho: float, ill_conditioned: bool) -> str:
+def instability_kind(mu: complex) -> str:
+    """How a Floquet multiplier ``mu`` outside the unit circle makes the response grow, in words.
+
+    A real negative multiplier doubles the period (a flip: the growth alternates sign from cycle
+    to cycle, at half the drive's frequency: a principal parametric resonance), a real positive one
+    grows at the drive's period, a complex pair at a frequency that is no harmonic of the drive
+    (a combination resonance; a Neimark-Sacker crossing on a non-linear branch).
+    """
+    mu = complex(mu)
+    if abs(mu.imag) <= 1e-6 * abs(mu):
+        return ("real negative: period doubling (a flip), growth at half the drive's frequency"
+                if mu.real < 0 else "real positive: growth at the drive's period")
+    return "a complex pair: growth at a frequency that is no harmonic of the drive (a combination resonance)"
+
+
+def _choose_method(method: str, rho: float, ill_conditioned: bool, mu: complex | None = None) -> str:
     """``"condensation"`` or ``"cyclic-lu"``; warns of a parametric instability.
 
     Parameters
@@ -125,6 +140,8 @@ def _choose_method(method: str, rho: float, ill_conditioned: bool) -> str:
         Largest Floquet multiplier modulus.
     ill_conditioned : bool
         From :func:`_check_resonance`.
+    mu : complex, optional
+        The largest multiplier, whose kind the warning names (:func:`instability_kind`).
 
     Returns
     -------
@@ -134,7 +151,8 @@ def _choose_method(method: str, rho: float, ill_conditioned: bool) -> str:
     if method == "auto":
         method = "cyclic-lu" if (unstable or ill_conditioned) else "condensation"
     if unstable:  # stacklevel: the caller of solve_cyclic
-        warnings.warn(f"parametric instability: largest Floquet multiplier |mu| = {rho:.6g} > 1; "
+        kind = f" ({instability_kind(mu)})" if mu is not None else ""
+        warnings.warn(f"parametric instability: largest Floquet multiplier |mu| = {rho:.6g} > 1{kind}; "
                       f"the periodic solution exists but is not attracting (solved by {method})",
                       InstabilityWarning, stacklevel=user_stacklevel())
     return method
