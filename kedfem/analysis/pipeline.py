@@ -315,8 +315,11 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
                 self._corrected.pop(i, None)  # its read-out stays in _obs_corrected
         self.levels[:-1] = [dataclasses.replace(x, problem=None) if x.problem is not None else x
                             for x in self.levels[:-1]]
-        log.info("%s: level n=%d (%s) %d iteration(s) rho=%.4g %.3f s", sc.mech.name, n, scheme.name,
-                 out.iterations, d.spectral_radius, prob.kinematics + prob.assembly + t_solve)
+        # (a level below the resolution floor has a spectral radius of its discretisation only: a new
+        # user read a coarse level's rho = 433 in this line as the machine's)
+        coarse = f" (below the {self._need} elements that resolve the excited modes)" if n < self._need else ""
+        log.info("%s: level n=%d (%s) %d iteration(s) rho=%.4g%s %.3f s", sc.mech.name, n, scheme.name,
+                 out.iterations, d.spectral_radius, coarse, prob.kinematics + prob.assembly + t_solve)
         self.levels.append(lv)
         if not lv.converged and prob.state:
             self._failed_problems[n] = (ti, prob)  # assembled once: backfill() solves it again

@@ -401,7 +401,7 @@ def solve(M, C, K, Q, period: float, scheme: str = "radau3", *, n: int | None = 
             SU[a:b], SV[a:b] = elems.stages(a, b, cyc.Z[a:b])
     timings["stages"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
-    log.info("collocation.solve(%s): n=%d N=%d rho=%.4g %.3f s", scheme, n, N,
+    log.debug("collocation.solve(%s): n=%d N=%d rho=%.4g %.3f s", scheme, n, N,
              float(np.abs(cyc.multipliers).max()) if cyc.multipliers.size else 0.0, timings["total"])
     sol = CollocationSolution(
         t=np.arange(n) * (period / n) if edges is None else edges[:-1].copy(),

@@ -169,7 +169,7 @@ def solve_cyclic(elems, per_element: float, *, method: str = "auto", memory_budg
     residual = _relative_residual(rnorm, pass1, Z)
     timings["solve"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
-    log.info("periodic: n=%d m=%d method=%s rho=%.6g cond=%.3g residual=%.2e (%.3f s)",
+    log.debug("periodic: n=%d m=%d method=%s rho=%.6g cond=%.3g residual=%.2e (%.3f s)",
              n, m, method, rho, condition, residual, timings["total"])
     kept = None
     if factors and keep and method == "condensation":
