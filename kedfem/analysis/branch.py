@@ -115,9 +115,10 @@ class Family:
     periods : int
         Drive cycles per period of the response (2: period doubled).
     in_speed : bool
-        ``lam`` is the drive speed and nothing else changes with it: the modal damping field,
-        which follows the configuration at each phase, is built once and read at every speed
-        (:meth:`kedfem.fe.modal_damping.DampingField.at_period`).
+        ``lam`` is the drive speed and nothing else changes with it: the modal damping field and
+        the assembly branch, which follow the configuration at each phase, are made once and read
+        at every speed (:meth:`kedfem.fe.modal_damping.DampingField.at_period`,
+        :meth:`kedfem.motion.kinematics.Cycle.at_speed`).
     """
 
     #: problems kept, the most recently used (besides the pinned ones)
@@ -127,6 +128,7 @@ class Family:
         self.scene_of, self.n, self.scheme, self.periods = scene_of, int(n), scheme, int(periods)
         self.in_speed = bool(in_speed)
         self._field = None  # (the first trigonometric damping field made, its turning sense) (in_speed)
+        self._cycle = None  # (the first cycle made, its turning sense) (in_speed)
         self._cache: OrderedDict = OrderedDict()
         self._pinned: dict = {}
         self.solves = 0
@@ -152,9 +154,14 @@ class Family:
             return self._cache[key]
         sc = self.scene_of(key)
         model = FEModel(sc.mech, reduction=sc.reduction)
-        cycle = Cycle(sc.mech)
-        ni = self.scheme.instants(self.n, sc.period * self.periods).size
         turn = math.copysign(1.0, sc.mech.drives[0].speed)  # (the other way, the phases run backwards)
+        if self.in_speed and self._cycle is not None and self._cycle[1] == turn:
+            cycle = self._cycle[0].at_speed(sc.mech)  # the assembly branch followed once
+        else:
+            cycle = Cycle(sc.mech)
+            if self.in_speed:
+                self._cycle = (cycle, turn)
+        ni = self.scheme.instants(self.n, sc.period * self.periods).size
         if self._field is not None and self._field[1] == turn:
             field = self._field[0].at_period(sc.period)
         else:

@@ -117,6 +117,34 @@ class Cycle:
             raise KinematicsError(f"{mechanism.name}: the motion does not return to the reference "
                                   "configuration after one cycle (the linkage switched assembly branch)")
 
+    def at_speed(self, mechanism: Mechanism) -> "Cycle":
+        """The cycle of ``mechanism``, the same linkage at another drive speed (every drive scaled
+        alike, as :meth:`~kedfem.model.mechanism.Mechanism.with_speed` makes it, turning the same
+        way): the coarse positions at each phase are this cycle's, their rates scaled by the speed
+        ratio, so the continuation of the assembly branch is not made again (a continuation in
+        speed makes a cycle at every step). Positions at any instants are then corrected by
+        Newton's method as in a cycle of its own.
+
+        Raises
+        ------
+        InputError
+            The drives do not turn at this cycle's speeds times one positive ratio.
+        """
+        ratio = mechanism.drives[0].speed / self.mechanism.drives[0].speed if mechanism.drives else 0.0
+        mine = [(d.member, d.ground_joint) for d in self.mechanism.drives]
+        if not (ratio > 0.0 and [(d.member, d.ground_joint) for d in mechanism.drives] == mine
+                and all(math.isclose(d.speed, ratio * e.speed, rel_tol=1e-12)
+                        for d, e in zip(mechanism.drives, self.mechanism.drives))):
+            raise InputError(f"{mechanism.name}: at_speed needs the same drives at one positive ratio of the speeds")
+        new = object.__new__(Cycle)
+        new.mechanism, new.model = mechanism, _LoopModel(mechanism)
+        new.period = mechanism.period
+        new.tol, new.y0 = self.tol, self.y0
+        new.h = new.period / self.COARSE
+        new.tc = np.arange(self.COARSE + 1) * new.h
+        new.yc, new.ydc = self.yc, self.ydc * ratio
+        return new
+
     def positions(self, t: np.ndarray) -> np.ndarray:
         """Unknown coordinates (free angles, slider travels) at instants ``t`` in ``[0, T]``."""
         model, tol, y0 = self.model, self.tol, self.y0
