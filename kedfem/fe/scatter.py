@@ -65,10 +65,11 @@ def _plan(flat_targets, keep) -> _Plan:
     """The :class:`_Plan` of the kept entries of ``flat_targets`` (n_entries,)."""
     idx = np.flatnonzero(keep)
     tgt = flat_targets[idx]
-    targets, row = np.unique(tgt, return_inverse=True)
-    sums = sp.csr_matrix((np.ones(idx.size), (np.ravel(row), idx)), shape=(targets.size, flat_targets.size))
-    sums.sort_indices()
-    return _Plan(targets, sums)
+    order = np.argsort(tgt, kind="stable")  # equal targets adjacent, their entries ascending
+    idx, tgt = idx[order], tgt[order]
+    starts = np.flatnonzero(np.r_[True, tgt[1:] != tgt[:-1]]) if tgt.size else np.zeros(0, int)
+    sums = sp.csr_matrix((np.ones(idx.size), idx, np.r_[starts, idx.size]), shape=(starts.size, flat_targets.size))
+    return _Plan(tgt[starts], sums)
 
 
 def _matrix_plan(colarr, N: int):
