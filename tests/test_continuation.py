@@ -107,3 +107,68 @@ def test_branch_files(branch, tmp_path):
     assert back.first_loss_of_stability.value == pytest.approx(branch.first_loss_of_stability.value, rel=1e-15)
     with pytest.raises(kf.InputError, match="branch"):
         kf.read_branch(tmp_path / "nowhere")
+
+
+def test_a_branch_interrupted_returns_its_points_so_far(monkeypatch, caplog):
+    """Ctrl-C while a branch is followed ends it at its last point and returns it (a new user
+    killed a 28-minute branch and had nothing), without the per-point errors and the period-2
+    branch, which would take as long again."""
+    import logging
+    from kedfem.analysis import branch as br
+    calls = {"n": 0}
+    advance = br.Tracker.advance
+
+    def interrupted(self, p, t):
+        calls["n"] += 1
+        if calls["n"] > 5:
+            raise KeyboardInterrupt
+        return advance(self, p, t)
+
+    monkeypatch.setattr(br.Tracker, "advance", interrupted)
+    sc = kf.Scene(rig(), effects=("inertia", "springs"), damping=kf.Rayleigh(alpha=ALPHA, beta=0.0))
+    with caplog.at_level(logging.WARNING, logger="kedfem.analysis.continuation"):
+        b = kf.continuation(sc, 300 * RPM, 900 * RPM, steps=48, errors=True, progress=False)
+    assert b.end.startswith("interrupted at") and "rpm" in b.end
+    assert len(b.points) == 7 and all(not p.errors for p in b.points) and b.subharmonic is None
+    assert b.values[-1] > b.values[0] and all(p.peaks for p in b.points)
+    assert any("the branch so far is returned (7 points)" in r.getMessage() for r in caplog.records)
+
+
+def test_a_long_branch_says_how_long_at_its_pace(monkeypatch, caplog):
+    """The rest of a branch at the pace so far: the range still to cover times the seconds per
+    unit covered, from the farthest value reached (a fold turning back does not shorten it);
+    said once, from the third point on and a tenth of the range, when above LONG_BRANCH."""
+    import logging
+    from kedfem.analysis import continuation as cont
+    now = {"t": 100.0}
+    monkeypatch.setattr(cont.time, "perf_counter", lambda: now["t"])
+    pace = cont._Pace(10.0, 20.0, 96, (1.0, "rad/s"), 100.0)
+    with caplog.at_level(logging.WARNING, logger="kedfem.analysis.continuation"):
+        now["t"] = 130.0
+        assert pace(10.5, 2) == ", about 570 s left" and not caplog.records  # 5 % of the range: not said
+        now["t"] = 160.0
+        assert pace(12.0, 3) == ", about 240 s left"                        # 60 s for 2 of 10
+        now["t"] = 190.0
+        assert pace(11.0, 4) == ", about 360 s left"  # turned back: still from 12, 90 s for 2
+    said = [r.getMessage() for r in caplog.records]
+    assert len(said) == 1 and "about 240 s more at this pace" in said[0] and "96 time elements" in said[0]
+
+
+def test_an_unstable_non_linear_response_is_not_called_parametric(branch):
+    """A solve started on the branch's unstable middle part (between the folds) converges there
+    and warns of an unstable periodic response of the non-linear scene, not of a parametric
+    instability (the linear solve of Newton's last step says that; a new user read it as the
+    linear machine's). A critical speed of a non-linear scene says so too."""
+    import dataclasses
+    from kedfem.analysis.critical import CriticalSpeed
+    mid = next(p for p in branch.points if not p.stable)
+    sc = kf.Scene(rig(mid.value), effects=("inertia", "springs"), damping=kf.Rayleigh(alpha=ALPHA, beta=0.0),
+                  steps=48, estimate=False)
+    with pytest.warns(kf.InstabilityWarning) as caught:
+        res = kf.solve(sc, start=mid.result)
+    assert not res.stable
+    text = " ".join(str(w.message) for w in caught if issubclass(w.category, kf.InstabilityWarning))
+    assert "unstable non-linear periodic response" in text and "parametric" not in text, text
+    c = CriticalSpeed("parametric", 100.0, (99.9, 100.1), 6, 1e-3, True, 0.9, 1.1, "onset", (), ("inertia",))
+    assert "parametric instability at" in c.describe()
+    assert "instability of the non-linear periodic response at" in dataclasses.replace(c, nonlinear=True).describe()

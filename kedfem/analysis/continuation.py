@@ -43,6 +43,37 @@ log = logging.getLogger(__name__)
 
 #: relative tolerance of a located bifurcation's parameter value
 LOCATE_RTOL = 1e-4
+#: a branch whose rest is forecast longer than this [s] says so in a logged warning, once
+LONG_BRANCH = 60.0
+
+
+class _Pace:
+    """How long the rest of a branch will likely take: the parameter still to cover times the
+    seconds per unit of it so far (the farthest value reached, so a branch turning back at a fold
+    does not make the rest look shorter). Shown on the bar; logged once as a warning, from the
+    third point on and a tenth of the range, when above :data:`LONG_BRANCH` (a new user's branch
+    ran 28 minutes with nothing said)."""
+
+    def __init__(self, lo: float, hi: float, n: int, unit: tuple, t0: float):
+        self.lo, self.hi, self.n, self.unit, self.t0 = lo, hi, n, unit, t0
+        self.far = lo
+        self.left = None
+        self._said = False
+
+    def __call__(self, lam: float, points: int) -> str:
+        now = time.perf_counter()
+        up = self.hi > self.lo
+        self.far = max(self.far, lam) if up else min(self.far, lam)
+        covered, span = abs(self.far - self.lo), abs(self.hi - self.lo)
+        self.left = (now - self.t0) * max(span - covered, 0.0) / covered if covered > 0 else None
+        if (points >= 3 and not self._said and self.left is not None and self.left > LONG_BRANCH
+                and covered >= 0.1 * span):
+            self._said = True
+            log.warning("continuation: %s of %s reached in %d points (%.0f s): about %.0f s more at this pace, "
+                        "%d time elements a cycle (steps= fewer, a narrower range or errors=False is faster; "
+                        "Ctrl-C ends the branch where it is and returns it)", in_unit(self.far, self.unit, 5),
+                        in_unit(self.hi, self.unit, 5), points, now - self.t0, self.left, self.n)
+        return "" if self.left is None else f", about {self.left:.0f} s left"
 
 
 @dataclass(frozen=True)
@@ -143,7 +174,9 @@ class Branch:
     subharmonic : Branch or None
         The period-2 branch that starts at the first flip (None: no flip, or not computed).
     end : str
-        Why the branch ends (``"reached hi"``, ``"stalled at ..."``).
+        Why the branch ends (``"reached hi"``, ``"stalled at ..."``, ``"interrupted at ..."``: a
+        Ctrl-C while it was followed, which returns the points so far without their errors and
+        without the period-2 branch).
     wall_time : float
         [s].
     solves : int
@@ -340,9 +373,10 @@ def _same_fold(found: list, c) -> bool:
 
 
 def _track(family: Family, p0: Point, p1: Point, lo: float, hi: float, max_points: int, eps: float, bar,
-           unit: tuple = (1.0, "")):
+           unit: tuple = (1.0, ""), pace: _Pace | None = None):
     """Pseudo-arclength from two points until the parameter leaves ``[lo, hi]``; the points and
-    the located bifurcations (as ``(Crossing, stable_before, stable_after)``)."""
+    the located bifurcations (as ``(Crossing, stable_before, stable_after)``). Interrupted
+    (Ctrl-C), the branch ends at its last point, ``end`` saying so."""
     tr = Tracker(family, eps=eps)
     tr.set_scale(p1.x, p1.lam)
     t = tr.unit(p1.x - p0.x, p1.lam - p0.lam)
@@ -354,13 +388,18 @@ def _track(family: Family, p0: Point, p1: Point, lo: float, hi: float, max_point
     up = hi > lo
     while len(pts) < max_points:
         p = pts[-1]
-        q = tr.advance(p, p.tangent)
+        try:
+            q = tr.advance(p, p.tangent)
+            kind = None if q is None else classify(p.multipliers, q.multipliers)
+            c = None if kind is None else tr.locate(p, q, kind, lam_rtol=LOCATE_RTOL)
+        except KeyboardInterrupt:
+            end = f"interrupted at {in_unit(p.lam, unit, 6)} (Ctrl-C)"
+            log.warning("continuation: %s: the branch so far is returned (%d points)", end, len(pts))
+            break
         if q is None:
             end = f"stalled at {p.lam:.6g} (the step length fell below its minimum)"
             break
-        kind = classify(p.multipliers, q.multipliers)
         if kind is not None:
-            c = tr.locate(p, q, kind, lam_rtol=LOCATE_RTOL)
             if kind == "fold" and _same_fold(found, c) and found[-1][1] == found[-1][2]:
                 found.pop()  # the turn seen a step earlier is this fold: the multiplier's crossing locates it
             found.append((c, p.stable, q.stable))
@@ -369,9 +408,10 @@ def _track(family: Family, p0: Point, p1: Point, lo: float, hi: float, max_point
             if not _same_fold(found, c):  # (the crossing of the step before was this fold already)
                 found.append((c, p.stable, q.stable))
         pts.append(q)
+        left = pace(q.lam, len(pts)) if pace is not None else ""
         if bar is not None:
             bar.update(1)
-            bar.set_postfix_str(f"{in_unit(q.lam, unit, 5)}, rho {q.rho:.3g}", refresh=False)
+            bar.set_postfix_str(f"{in_unit(q.lam, unit, 5)}, rho {q.rho:.3g}{left}", refresh=False)
         if (q.lam > hi if up else q.lam < hi) or (q.lam < lo if up else q.lam > lo):
             # the branch left the range: end it on the boundary
             bound = hi if (q.lam > hi if up else q.lam < hi) else lo
@@ -446,6 +486,10 @@ def continuation(scene, lo: float, hi: float, *, parameter: str = "speed", steps
     n = _elements(scene_of, lo, hi, steps, scheme)
     eps = min(sc0.eps, 1e-6)
     family = Family(scene_of, n, scheme, in_speed=parameter == "speed")
+    shown_unit = (RPM_PER_RAD_S, "rpm") if parameter == "speed" else (1.0, unit)
+    log.info("continuation: %s from %s to %s on %d time elements a cycle, at most %d points%s",
+             parameter, in_unit(lo, shown_unit, 6), in_unit(hi, shown_unit, 6), n, max_points,
+             ", each point's error from two coarser solves" if errors else "")
     from tqdm.auto import tqdm
     import sys
     bar = tqdm(desc="continuation", unit="point", file=sys.stderr, delay=2.0, leave=False,
@@ -464,10 +508,12 @@ def continuation(scene, lo: float, hi: float, *, parameter: str = "speed", steps
             d *= 0.5
         if p1 is None:
             raise NonlinearSolveError(f"continuation: no second point near lo = {lo:.6g}", highest=lo)
-        pts, found, end = _track(family, p0, p1, lo, hi, max_points, eps, bar,
-                                 (RPM_PER_RAD_S, "rpm") if parameter == "speed" else (1.0, unit))
+        pts, found, end = _track(family, p0, p1, lo, hi, max_points, eps, bar, shown_unit,
+                                 _Pace(lo, hi, n, shown_unit, time.perf_counter()))
     finally:
         bar.close()
+    if end.startswith("interrupted"):  # what the user stopped: the points as they are, quickly
+        errors = period2 = False
     bifs = tuple(Bifurcation(c.kind, c.lam, c.bracket, c.multiplier, bool(sb), bool(sa)) for c, sb, sa in found)
     disable = None if progress is None else not progress
     with tqdm(pts, desc="continuation: peaks and errors" if errors else "continuation: peaks", unit="point",

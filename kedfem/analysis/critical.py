@@ -57,7 +57,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..checks import choice, flag
-from ..errors import AccuracyWarning, ConvergenceWarning, InputError, KedError, UnboundedResponseError
+from ..errors import AccuracyWarning, ConvergenceWarning, InputError, UnboundedResponseError
 from .campbell import RPM_PER_RAD_S, cycle_frequencies, linear_effects, scene_at
 from .hooks import hook
 from .progress import bar
@@ -137,6 +137,11 @@ class CriticalSpeed:
         The effects of the scene the question was asked of.
     name : str
         Scene name.
+    nonlinear : bool
+        The scene's effects depend on the elastic state (``geometric_nonlinearity``, friction):
+        the crossing is the loss of stability of its periodic response, whose linearisation
+        may be stable where the linear scene's is (``describe`` says so instead of
+        "parametric instability").
     """
 
     kind: str
@@ -151,6 +156,7 @@ class CriticalSpeed:
     evaluations: tuple[Evaluation, ...]
     effects: tuple[str, ...]
     name: str = ""
+    nonlinear: bool = False
 
     @property
     def rpm(self) -> float:
@@ -170,6 +176,8 @@ class CriticalSpeed:
     def describe(self) -> str:
         """One line: the speed, its bracket, the quantity either side, the cost."""
         what = "parametric instability" if self.kind == "parametric" else "buckling"
+        if self.kind == "parametric" and self.nonlinear:  # (a new user read "parametric" where the linear
+            what = "instability of the non-linear periodic response"  # scene was stable either side)
         if self.direction == "exit":
             what = f"end of {what}"
         met = "met" if self.met else "NOT met"
@@ -456,7 +464,9 @@ def _search(evaluate, definite, side, lo, hi, scan, kind, what, rtol, evals, max
     x_hat = math.exp(_secant(ua, _g(kind, a), ub, _g(kind, b)))
     speed = min(max(x_hat, xa), xb)
     met = bool(xb - xa <= rtol * speed)
+    nonlinear = kind == "parametric" and dataclasses.replace(base, effects=effects).state_dependent
     res = CriticalSpeed(kind, speed, (xa, xb), len(evals), float(rtol), met, a.value, b.value,
-                        "onset" if side_lo < 0 else "exit", tuple(evals), effects, base.name or base.mech.name)
+                        "onset" if side_lo < 0 else "exit", tuple(evals), effects, base.name or base.mech.name,
+                        nonlinear)
     (log.info if met else log.warning)("%s", res.describe())
     return res

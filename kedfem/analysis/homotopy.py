@@ -62,10 +62,10 @@ class ContinuationProgress:
         self.left = (now - self.t_start) * rest / covered if covered > 0 else None
         rpm = RPM_PER_RAD_S
         text = f"{self.n} time elements, continuation in speed {lam * rpm:.4g} of {self.target * rpm:.4g} rpm"
+        if self.left is not None and rest > 0:  # before the steps: what a narrow terminal must show
+            text += f", about {self.left:.0f} s left"
         if steps:
             text += f", {steps} step{'s' if steps > 1 else ''}"
-        if self.left is not None and rest > 0:
-            text += f", about {self.left:.0f} s left"
         if self.bar is not None:
             self.bar.set_postfix_str(text, refresh=True)
         if steps >= 3 and not self._said and self.left is not None and self.left > LONG_CONTINUATION \

@@ -36,7 +36,7 @@ from . import accuracy
 from ..solvers import schemes
 from ..fe.model import FEModel
 from ..fe.assembler import Assembler
-from ..errors import AccuracyWarning, EffectWarning, InputError, user_stacklevel
+from ..errors import AccuracyWarning, EffectWarning, InputError, InstabilityWarning, user_stacklevel
 from ..motion.kinematics import Cycle, kinematics
 from ..fe.modal_damping import DampingField, PiecewiseDampingField
 from ..fe.slots import node_crossings
@@ -489,9 +489,11 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
     # ------------------------------------------------------------------- run
     def run(self) -> PeriodicResult:
         from tqdm.auto import tqdm
+        # no rate or time left by the levels' rate: the levels cost 2-4x each other, a continuation in
+        # speed many times more (it puts its own seconds left in the postfix, which needs the width)
         self._bar = tqdm(desc=self.scene.name or self.scene.mech.name, unit="level", file=sys.stderr, delay=2.0,
                          disable=None if self.progress is None else not self.progress, dynamic_ncols=True,
-                         leave=False)
+                         leave=False, bar_format="{l_bar}{bar}| {n_fmt}/{total_fmt} levels [{elapsed}{postfix}]")
         try:
             return self._run()
         finally:
@@ -636,7 +638,13 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
         if not final.converged:
             raise self.failure(final)
         for w in final.caught:  # warnings of the result's own solve (coarse levels' are dropped)
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+            msg = w.message
+            if issubclass(w.category, InstabilityWarning) and sc.state_dependent:
+                # the linear solve of Newton's last step says "parametric": here it is the orbit's own
+                msg = InstabilityWarning(str(msg).replace(
+                    "parametric instability:", "unstable non-linear periodic response (its linearisation's "
+                    "Floquet multipliers):", 1))
+            warnings.warn_explicit(msg, w.category, w.filename, w.lineno)
         if est is not None and sc.rtol is not None and not est.met:
             how = (f"{final.n} time elements (steps given)" if sc.steps is not None
                    else f"the largest number of time elements ({final.n}, limit {MAX_STEPS})")
