@@ -633,12 +633,20 @@ class _StderrHandler(logging.StreamHandler):
         pass
 
 
+class _LowerLevel(logging.Formatter):
+    """``kedfem: warning: ...`` for a logged warning as for a Python warning (a new user saw both
+    ``WARNING:`` and ``warning:`` in one run)."""
+
+    def format(self, record):
+        return super().format(logging.makeLogRecord({**record.__dict__, "levelname": record.levelname.lower()}))
+
+
 def _setup_logging(verbose: int) -> None:
     level = logging.WARNING if verbose <= 0 else logging.INFO if verbose == 1 else logging.DEBUG
     root = logging.getLogger("kedfem")
     if not any(getattr(h, "_kedfem_cli", False) for h in root.handlers):
         h = _StderrHandler()
-        h.setFormatter(logging.Formatter("kedfem: %(levelname)s: %(message)s"))
+        h.setFormatter(_LowerLevel("kedfem: %(levelname)s: %(message)s"))
         h._kedfem_cli = True
         root.addHandler(h)
     root.setLevel(level)

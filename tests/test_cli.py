@@ -259,3 +259,19 @@ def test_strict_fails_on_the_strength_checks_the_summary_shows():
     strong = kf.Material(E=2.0e11, rho=7850.0, yield_strength=1e9, ultimate_strength=2e9, endurance_limit=5e8)
     m.links["rod"] = dataclasses.replace(m.links["rod"], material=strong)
     assert strict_failures(kf.solve(kf.Scene(m, steps=48, estimate=False, damping=kf.ModalDamping(0.02)))) == []
+
+
+def test_logged_and_python_warnings_read_alike_on_the_command_line(capsys):
+    """``kedfem: warning: ...`` for both (a new user saw ``WARNING:`` and ``warning:`` in one run)."""
+    import logging
+    from kedfem import cli
+    root = logging.getLogger("kedfem")
+    before, level = list(root.handlers), root.level
+    cli._setup_logging(0)
+    try:
+        logging.getLogger("kedfem.analysis.pipeline").warning("a logged warning %d", 7)
+        err = capsys.readouterr().err
+    finally:
+        root.handlers[:] = before
+        root.setLevel(level)
+    assert "kedfem: warning: a logged warning 7" in err and "WARNING" not in err
