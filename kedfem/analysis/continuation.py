@@ -452,11 +452,14 @@ def continuation(scene, lo: float, hi: float, *, parameter: str = "speed", steps
     max_points : int
         Most points of the branch.
     progress : bool, optional
-        A progress bar on stderr (default: on a terminal).
+        A progress bar on stderr (default: on a terminal), with the seconds left at the pace so
+        far; a rest forecast above :data:`LONG_BRANCH` is also said once in a logged warning.
 
     Returns
     -------
     Branch
+        Interrupted (Ctrl-C) while it is followed, the branch as far as it got (``end``
+        ``"interrupted at ..."``), its points without their errors, no period-2 branch.
 
     Raises
     ------
