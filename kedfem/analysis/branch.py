@@ -41,6 +41,7 @@ import numpy as np
 from ..errors import InstabilityWarning, KedError, UnboundedResponseError
 from ..fe.model import FEModel
 from ..fe.modal_damping import DampingField
+from ..solvers import monodromy
 from ..motion.kinematics import Cycle
 from .problem import PeriodicProblem, _relative_change, damping_field
 
@@ -96,8 +97,9 @@ PREDICTOR_ERROR = 2.0
 PREDICTOR_TARGET = 0.5
 #: a multiplier within this of the unit circle is on it (stability changes at crossings only)
 ON_CIRCLE = 1e-9
-#: a multiplier with an imaginary part below this fraction of its modulus is real
-REAL_TOL = 1e-6
+#: a multiplier with an imaginary part below this fraction of its modulus is real (the solvers'
+#: instability warning names its kind by the same rule)
+REAL_TOL = monodromy.REAL_TOL
 
 _FAILURES = (KedError, np.linalg.LinAlgError, FloatingPointError)
 

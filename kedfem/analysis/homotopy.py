@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import math
 import time
 import warnings
 
@@ -76,6 +77,11 @@ class ContinuationProgress:
                         now - self.t_start, self.left)
 
 
+#: a finer level's run-up starts where its coarser level's passed, this fraction below the first
+#: fold that one met (near a fold the levels' branches differ most)
+COARSE_MARGIN = 0.02
+
+
 def phase_sample(discrete, t, period: float):
     """A discrete solution read at instants ``t`` of a cycle ``period`` long, at the same fractions
     of its own cycle (velocities rescaled to the new cycle): a response at another speed as a
@@ -116,12 +122,21 @@ class Homotopy:
         t0 = time.perf_counter()
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            given = None
-            if self.start is not None and self.start.sampler is not None:
+            given, source = None, None
+            coarse = self._coarse_start(w)
+            if coarse is not None:
+                # a coarser level's run-up: its response below its first fold, where this level's
+                # branch runs alike (a drag-link's 96-element level ran up again from 0.75 of the
+                # target, 13 s, where its 48-element level had been there)
+                w0, d0, n0 = coarse
+                source = f"the {n0}-element level's run-up"
+            elif self.start is not None and self.start.sampler is not None:
                 # continue from the given start's own speed, where it is a response
-                w0 = self.start.model.mech.drives[0].speed
+                w0, d0 = self.start.model.mech.drives[0].speed, self.start.sampler.discrete
+                source = "the given start"
+            if source is not None:
                 p0 = fam.problem(w0)
-                given = (w0, fam.pack(*phase_sample(self.start.sampler.discrete, p0.instants, p0.period), w0))
+                given = (w0, fam.pack(*phase_sample(d0, p0.instants, p0.period), w0))
             try:
                 r = reach(fam, w, eps=eps, unit=(RPM_PER_RAD_S, "rpm"), start=given,
                           progress=ContinuationProgress(sc.mech.name, w, prob.n, self._bar))
@@ -130,11 +145,34 @@ class Homotopy:
                 self.highest = e.highest
                 log.info("%s: %s", sc.mech.name, self.path)  # the NonlinearSolveError says it
                 return failed
+        self._runup = (prob.n, r)
         rpm = RPM_PER_RAD_S
         folds = (f", through folds at {', '.join(f'{abs(f) * rpm:.1f}' for f in r.folds)} rpm" if r.folds else "")
-        self.path = (f"reached by continuation in speed from {r.start * rpm:.4g} rpm ({r.steps} steps{folds}; "
-                     f"Newton from {origin} did not converge at {abs(w) * rpm:.4g} rpm)")
+        there = (f" ({source}'s response there)" if given is not None and math.isclose(r.start, abs(given[0]))
+                 else "")
+        self.path = (f"reached by continuation in speed from {r.start * rpm:.4g} rpm{there} ({r.steps} steps"
+                     f"{folds}; Newton from {origin} did not converge at {abs(w) * rpm:.4g} rpm)")
         log.info("%s: %s, %d solves, %.1f s", sc.mech.name, self.path, r.solves, time.perf_counter() - t0)
         d = r.point.discrete
         from .problem import Solved
         return Solved(d, True, failed.iterations + r.solves, failed.history, "newton", list(caught))
+
+    def _coarse_start(self, target: float):
+        """``(speed, discrete, n)``: where a coarser level's run-up to ``target`` passed, the
+        response to start this level's from, or None. Its last point at most
+        :data:`COARSE_MARGIN` below the first fold it met (the target without folds), taken
+        before that fold; None where that is not above the fresh start (0.75 of the target)."""
+        run = self._runup
+        if run is None:
+            return None
+        n0, r = run
+        cutoff = min([abs(f) for f in r.folds] + [abs(target)]) * (1.0 - COARSE_MARGIN)
+        best = None
+        for p in r.path:  # in the order of the run-up: up to its first turn
+            if best is not None and abs(p.lam) < abs(best.lam):
+                break
+            if abs(p.lam) <= cutoff and p.discrete is not None:
+                best = p
+        if best is None or abs(best.lam) <= 0.75 * abs(target) or math.copysign(1.0, best.lam) != math.copysign(1.0, target):
+            return None
+        return best.lam, best.discrete, n0

@@ -164,6 +164,7 @@ def mesh_error(res, factor: int = 2) -> MeshError | None:
         raise InputError(f"mesh_error: res must be a result of kedfem.solve, got {type(res).__name__}")
     if isinstance(factor, bool) or not isinstance(factor, int) or not 2 <= factor <= 8:
         raise InputError(f"mesh_error: factor must be an integer in 2 .. 8, got {factor!r}")
+    res._cache.pop("mesh_error", None)  # (a failed check leaves no earlier one in the summary)
     scene = res.scene
     mech = scene.mechanism
     flex = [lk for lk in mech.links.values() if not lk.rigid]

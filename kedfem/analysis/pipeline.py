@@ -233,6 +233,7 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
         self._failed_problems: dict = {}  # n -> (instants, problem) of a level whose iteration failed
         self.path = ""       # how the non-linear response was reached, when not directly
         self.start = start   # a neighbour's response the first level starts from
+        self._runup = None   # (n, Reached) of the last level reached by continuation in speed
         self.highest = None  # the highest speed the continuation reached, when it failed
         self._grids: dict[int, tuple] = {}
         self._breaks = None  # instants of kinks in the data (see breaks())
@@ -317,7 +318,9 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
                             for x in self.levels[:-1]]
         # (a level below the resolution floor has a spectral radius of its discretisation only: a new
         # user read a coarse level's rho = 433 in this line as the machine's)
-        coarse = f" (below the {self._need} elements that resolve the excited modes)" if n < self._need else ""
+        coarse = (f" (below the {self._need} elements that resolve the excited modes)" if n < self._need else
+                  f" (lowered by the scheme's numerical damping below {self._stab_need} elements)"
+                  if n < self._stab_need else "")
         log.info("%s: level n=%d (%s) %d iteration(s) rho=%.4g%s %.3f s", sc.mech.name, n, scheme.name,
                  out.iterations, d.spectral_radius, coarse, prob.kinematics + prob.assembly + t_solve)
         self.levels.append(lv)

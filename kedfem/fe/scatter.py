@@ -48,8 +48,10 @@ class _Plan:
 
     ``targets`` (k,) are the global flat entries reached; ``sums`` (k, n_entries) is the 0/1 CSR
     operator whose row ``i`` picks the entries landing on ``targets[i]``, in ascending entry
-    order (a sum in the order of ``np.add.reduceat`` over the sorted gather: bit-identical, and
-    3x faster than the gather with its reduction at the four-bar's sizes).
+    order, summed left to right. (It replaced a gather with ``np.add.reduceat``, which adds all
+    but the first entry of a segment pairwise: equal sums where at most two entries meet, else
+    within round-off, 2e-16 of the mould oscillator's terms. The sums are 3.3x faster at the
+    four-bar's sizes, the batched scatter of its solve with the writes 1.9x: 22 -> 11.5 ms.)
     """
 
     targets: np.ndarray

@@ -351,7 +351,7 @@ def write_result(res, out_dir, *, plots: bool = True, csv: bool = True, npz: boo
     if loads:
         with stage("loads"):
             machine = res.loads()
-    mesh = None
+    mesh = res._cache.get("mesh_error")  # one the user made (kf.mesh_error(res)), as res.summary() shows it
     mesh_note = "mesh check off: --no-mesh-check, mesh_check=False"
     if mesh_check:
         from ..analysis.mesh_check import mesh_error

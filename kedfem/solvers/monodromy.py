@@ -113,19 +113,26 @@ def _check_resonance(mult: np.ndarray, condition: float, max_condition: float) -
     return False
 
 
+#: a multiplier whose imaginary part is below this fraction of its modulus is real
+REAL_TOL = 1e-6
+
+
 def instability_kind(mu: complex) -> str:
     """How a Floquet multiplier ``mu`` outside the unit circle makes the response grow, in words.
 
-    A real negative multiplier doubles the period (a flip: the growth alternates sign from cycle
-    to cycle, at half the drive's frequency: a principal parametric resonance), a real positive one
-    grows at the drive's period, a complex pair at a frequency that is no harmonic of the drive
-    (a combination resonance; a Neimark-Sacker crossing on a non-linear branch).
+    Over one period of the problem: a real negative multiplier changes the growth's sign from one
+    period to the next (period doubling, a flip: a principal parametric resonance), a real
+    positive one grows in step with the period (a divergence: a link buckling, or a resonance
+    locked to the drive; a fold on a non-linear branch), a complex pair at a frequency locked to
+    no harmonic of the drive (a combination resonance; a Neimark-Sacker crossing on a non-linear
+    branch).
     """
     mu = complex(mu)
-    if abs(mu.imag) <= 1e-6 * abs(mu):
-        return ("real negative: period doubling (a flip), growth at half the drive's frequency"
-                if mu.real < 0 else "real positive: growth at the drive's period")
-    return "a complex pair: growth at a frequency that is no harmonic of the drive (a combination resonance)"
+    if abs(mu.imag) <= REAL_TOL * abs(mu):
+        return ("real negative: period doubling (a flip), the growth changes sign from one period to the next"
+                if mu.real < 0 else "real positive: a divergence, growth in step with the period (buckling, "
+                "or a resonance locked to the drive)")
+    return "a complex pair: growth at a frequency locked to no harmonic of the drive (a combination resonance)"
 
 
 def _choose_method(method: str, rho: float, ill_conditioned: bool, mu: complex | None = None) -> str:
