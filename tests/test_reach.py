@@ -129,3 +129,27 @@ def test_a_continuation_out_of_solves_says_so():
     c = FarStart(1.2)
     with pytest.raises(NonlinearSolveError, match=r"its budget of 40 linear solves spent"):
         branch.reach(c, 30.0, eps=1e-10, max_solves=40)
+
+
+def test_a_finer_level_runs_up_from_where_its_coarser_level_passed_below_its_first_fold():
+    """``Homotopy._coarse_start``: the coarser level's run-up point at most COARSE_MARGIN below the
+    first fold it met (the target without folds), taken before that fold turned it back, and
+    only where that is above the fresh start (0.75 of the target) and on the target's side."""
+    from types import SimpleNamespace as NS
+    from kedfem.analysis.branch import Reached
+    from kedfem.analysis.homotopy import COARSE_MARGIN, Homotopy
+
+    def run(lams, folds):
+        pts = tuple(NS(lam=v, discrete=f"d{v}") for v in lams)
+        return NS(_runup=(48, Reached(pts[-1], lams[0], len(lams), tuple(folds), 99, pts)))
+
+    # up to a fold at 95, back to 94, forward past it to the target 100
+    r = run([70, 80, 88, 92, 93, 94.5, 94, 96, 100], [94.8, 93.9])
+    lam, d, n = Homotopy._coarse_start(r, 100.0)
+    assert (lam, d, n) == (92, "d92", 48) and lam <= 94.8 * (1 - COARSE_MARGIN)
+    # the branch back from the fold passes below the cutoff again: not a point of the way up
+    assert Homotopy._coarse_start(run([70, 88, 92.5, 94.5, 92.8, 93.5, 100], [94.6, 92.7]), 100.0)[0] == 92.5
+    assert Homotopy._coarse_start(run([70, 80, 90, 97, 99, 100], []), 100.0)[0] == 97  # no fold: 2 % below the target
+    assert Homotopy._coarse_start(run([70, 72, 74, 76], [75.5]), 100.0) is None         # not above 0.75 of the target
+    assert Homotopy._coarse_start(run([-70, -80, -90, -97, -100], []), -100.0)[0] == -97  # turning the other way
+    assert Homotopy._coarse_start(NS(_runup=None), 100.0) is None

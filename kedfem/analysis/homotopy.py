@@ -167,10 +167,11 @@ class Homotopy:
             return None
         n0, r = run
         cutoff = min([abs(f) for f in r.folds] + [abs(target)]) * (1.0 - COARSE_MARGIN)
-        best = None
+        best, before = None, 0.0
         for p in r.path:  # in the order of the run-up: up to its first turn
-            if best is not None and abs(p.lam) < abs(best.lam):
+            if abs(p.lam) < before:
                 break
+            before = abs(p.lam)
             if abs(p.lam) <= cutoff and p.discrete is not None:
                 best = p
         if best is None or abs(best.lam) <= 0.75 * abs(target) or math.copysign(1.0, best.lam) != math.copysign(1.0, target):
