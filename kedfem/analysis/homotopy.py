@@ -77,7 +77,7 @@ class ContinuationProgress:
                         now - self.t_start, self.left)
 
 
-#: a finer level's run-up starts where its coarser level's passed, this fraction below the first
+#: a finer level's run-up starts where its coarser level's passed, this fraction below the lowest
 #: fold that one met (near a fold the levels' branches differ most)
 COARSE_MARGIN = 0.02
 
@@ -160,8 +160,9 @@ class Homotopy:
     def _coarse_start(self, target: float):
         """``(speed, discrete, n)``: where a coarser level's run-up to ``target`` passed, the
         response to start this level's from, or None. Its last point at most
-        :data:`COARSE_MARGIN` below the first fold it met (the target without folds), taken
-        before that fold; None where that is not above the fresh start (0.75 of the target)."""
+        :data:`COARSE_MARGIN` below the lowest fold it met (the target without folds), taken on
+        its way up before its first turn; None where that is not above the fresh start (0.75 of
+        the target)."""
         run = self._runup
         if run is None:
             return None
