@@ -133,8 +133,8 @@ def test_a_continuation_out_of_solves_says_so():
 
 def test_a_finer_level_runs_up_from_where_its_coarser_level_passed_below_its_first_fold():
     """``Homotopy._coarse_start``: the coarser level's run-up point at most COARSE_MARGIN below the
-    first fold it met (the target without folds), taken before that fold turned it back, and
-    only where that is above the fresh start (0.75 of the target) and on the target's side."""
+    lowest fold it met, taken on its way up before its first turn, and only where it met a fold
+    and that point is above the fresh start (0.75 of the target)."""
     from types import SimpleNamespace as NS
     from kedfem.analysis.branch import Reached
     from kedfem.analysis.homotopy import COARSE_MARGIN, Homotopy
@@ -149,7 +149,7 @@ def test_a_finer_level_runs_up_from_where_its_coarser_level_passed_below_its_fir
     assert (lam, d, n) == (92, "d92", 48) and lam <= 94.8 * (1 - COARSE_MARGIN)
     # the branch back from the fold passes below the cutoff again: not a point of the way up
     assert Homotopy._coarse_start(run([70, 88, 94.5, 90, 93.5, 100], [94.6]), 100.0)[0] == 88  # (a turn not listed)
-    assert Homotopy._coarse_start(run([70, 80, 90, 97, 99, 100], []), 100.0)[0] == 97  # no fold: 2 % below the target
+    assert Homotopy._coarse_start(run([70, 80, 90, 97, 99, 100], []), 100.0) is None  # no fold seen: not a guide
     assert Homotopy._coarse_start(run([70, 72, 74, 76], [75.5]), 100.0) is None         # not above 0.75 of the target
-    assert Homotopy._coarse_start(run([-70, -80, -90, -97, -100], []), -100.0)[0] == -97  # turning the other way
+    assert Homotopy._coarse_start(run([-70, -80, -90, -96, -98, -97, -100], [-98.2, -96.9]), -100.0)[0] == -90  # the other way
     assert Homotopy._coarse_start(NS(_runup=None), 100.0) is None

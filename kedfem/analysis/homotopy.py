@@ -160,14 +160,17 @@ class Homotopy:
     def _coarse_start(self, target: float):
         """``(speed, discrete, n)``: where a coarser level's run-up to ``target`` passed, the
         response to start this level's from, or None. Its last point at most
-        :data:`COARSE_MARGIN` below the lowest fold it met (the target without folds), taken on
-        its way up before its first turn; None where that is not above the fresh start (0.75 of
-        the target)."""
+        :data:`COARSE_MARGIN` below the lowest fold it met, taken on its way up before its first
+        turn; None where it met no fold (the finer level's Newton failed at the target from the
+        coarser response: its own fold is likely below, unseen) or that point is not above the
+        fresh start (0.75 of the target)."""
         run = self._runup
         if run is None:
             return None
         n0, r = run
-        cutoff = min([abs(f) for f in r.folds] + [abs(target)]) * (1.0 - COARSE_MARGIN)
+        if not r.folds:  # where the finer level fails from the coarser's response without a fold the
+            return None  # coarser saw, its own fold lies below (a drag-link at 3270 rpm, the four-bar at 550)
+        cutoff = min(abs(f) for f in r.folds) * (1.0 - COARSE_MARGIN)
         best, before = None, 0.0
         for p in r.path:  # in the order of the run-up: up to its first turn
             if abs(p.lam) < before:
