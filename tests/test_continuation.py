@@ -137,7 +137,8 @@ def test_a_branch_interrupted_returns_its_points_so_far(monkeypatch, caplog):
 def test_a_long_branch_says_how_long_at_its_pace(monkeypatch, caplog):
     """The rest of a branch at the pace so far: the range still to cover times the seconds per
     unit covered, from the farthest value reached (a fold turning back does not shorten it);
-    said once, from the third point on and a tenth of the range, when above LONG_BRANCH."""
+    said from the third point on and a tenth of the range, when above LONG_BRANCH, and again when
+    it has doubled."""
     import logging
     from kedfem.analysis import continuation as cont
     now = {"t": 100.0}
@@ -150,8 +151,13 @@ def test_a_long_branch_says_how_long_at_its_pace(monkeypatch, caplog):
         assert pace(12.0, 3) == ", about 240 s left"                        # 60 s for 2 of 10
         now["t"] = 190.0
         assert pace(11.0, 4) == ", about 360 s left"  # turned back: still from 12, 90 s for 2
+        now["t"] = 400.0
+        pace(13.0, 5)  # 300 s for 3 of 10: 700 s left, more than twice 240: said again
+        now["t"] = 420.0
+        pace(13.2, 6)  # 735 s: not twice 700
     said = [r.getMessage() for r in caplog.records]
-    assert len(said) == 1 and "about 240 s more at this pace" in said[0] and "96 time elements" in said[0]
+    assert len(said) == 2 and "about 240 s more at this pace" in said[0] and "96 time elements" in said[0]
+    assert "about 700 s more" in said[1]
 
 
 def test_an_unstable_non_linear_response_is_not_called_parametric(branch):

@@ -365,6 +365,21 @@ def test_the_continuation_forecast_is_the_pace_so_far_times_the_speed_left(monke
     finally:
         logging.getLogger("kedfem.analysis.pipeline").removeHandler(handler)
     assert n_early == 1 and len(records) == 2 and "about 120 s more" in records[1].getMessage()
+    # said again when the forecast has doubled (the pace slows toward a resonance: said once, as
+    # it crossed the threshold, it read "about 10 s more" where 60 s followed), at most 3 times
+    clock = iter([0.0, 1.0, 2.7, 8.0, 20.0, 45.0, 200.0])
+    monkeypatch.setattr(homotopy.time, "perf_counter", lambda: next(clock))
+    r = homotopy.ContinuationProgress("m", 100.0, 48, None)
+    logging.getLogger("kedfem.analysis.pipeline").addHandler(handler)
+    try:
+        r(20.0, 20.0, 0)
+        for lam, steps in ((40.0, 3), (42.0, 4), (44.0, 5), (46.0, 6), (48.0, 7), (50.0, 8)):
+            r(lam, 20.0, steps)
+    finally:
+        logging.getLogger("kedfem.analysis.pipeline").removeHandler(handler)
+    said = [m.getMessage() for m in records[2:]]
+    # forecasts 3.0, 7.1, 18.7 (said), 41.5 (said: > 2 x 18.7), 83.6 (said: > 2 x 41.5), 333 (not: 3 said)
+    assert len(said) == 3 and [s_.split("about ")[1].split(" s")[0] for s_ in said] == ["19", "42", "84"], said
 
 
 def _strip_crank_rocker(rpm):

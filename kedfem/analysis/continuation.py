@@ -50,15 +50,15 @@ LONG_BRANCH = 60.0
 class _Pace:
     """How long the rest of a branch will likely take: the parameter still to cover times the
     seconds per unit of it so far (the farthest value reached, so a branch turning back at a fold
-    does not make the rest look shorter). Shown on the bar; logged once as a warning, from the
-    third point on and a tenth of the range, when above :data:`LONG_BRANCH` (a new user's branch
-    ran 28 minutes with nothing said)."""
+    does not make the rest look shorter). Shown on the bar; logged as a warning from the third
+    point on and a tenth of the range, when above :data:`LONG_BRANCH`, and again each time it has
+    doubled since (three times at most; a new user's branch ran 28 minutes with nothing said)."""
 
     def __init__(self, lo: float, hi: float, n: int, unit: tuple, t0: float):
         self.lo, self.hi, self.n, self.unit, self.t0 = lo, hi, n, unit, t0
         self.far = lo
         self.left = None
-        self._said = False
+        self._said, self._times = 0.0, 0
 
     def __call__(self, lam: float, points: int) -> str:
         now = time.perf_counter()
@@ -66,9 +66,9 @@ class _Pace:
         self.far = max(self.far, lam) if up else min(self.far, lam)
         covered, span = abs(self.far - self.lo), abs(self.hi - self.lo)
         self.left = (now - self.t0) * max(span - covered, 0.0) / covered if covered > 0 else None
-        if (points >= 3 and not self._said and self.left is not None and self.left > LONG_BRANCH
-                and covered >= 0.1 * span):
-            self._said = True
+        if (points >= 3 and self.left is not None and self.left > max(LONG_BRANCH, 2.0 * self._said)
+                and covered >= 0.1 * span and self._times < 3):
+            self._said, self._times = self.left, self._times + 1
             log.warning("continuation: %s of %s reached in %d points (%.0f s): about %.0f s more at this pace, "
                         "%d time elements a cycle (steps= fewer, a narrower range or errors=False is faster; "
                         "Ctrl-C ends the branch where it is and returns it)", in_unit(self.far, self.unit, 5),

@@ -24,6 +24,8 @@ LONG_CONTINUATION = 10.0
 #: control finds the predictor's error: the four-bar preset at 350 rpm was forecast 10 s more
 #: after three steps that covered 2 % of the way, and took 2 s)
 SAID_AFTER = 0.1
+#: ... and again when it has doubled since, at most this many times in all
+SAID_TIMES = 3
 
 
 class ContinuationProgress:
@@ -32,9 +34,11 @@ class ContinuationProgress:
     Called by :func:`kedfem.analysis.branch.reach` after each point: the speed reached, the
     steps taken, and the seconds left at the pace since the start was found (the speed still to
     cover times the seconds per rad/s so far: the step grows on an easy branch, so this errs
-    long). Shown on the solve's progress bar; logged once, from the third step on (steps whose
-    iteration failed count, those rejected on their first correction do not) and a tenth of the
-    way (:data:`SAID_AFTER`), when above :data:`LONG_CONTINUATION`.
+    long; it shrinks toward a resonance, so this errs short there). Shown on the solve's
+    progress bar; logged from the third step on (steps whose iteration failed count, those
+    rejected on their first correction do not) and a tenth of the way (:data:`SAID_AFTER`), when
+    above :data:`LONG_CONTINUATION`, and again each time it has doubled since it was last said
+    (:data:`SAID_TIMES` in all).
 
     Parameters
     ----------
@@ -52,7 +56,8 @@ class ContinuationProgress:
         self.name, self.target, self.n, self.bar = name, abs(target), n, bar
         self.t_start = None  # when the start was found
         self.left = None     # seconds left, as last forecast
-        self._said = False
+        self._said = 0.0     # the seconds left last said in the log
+        self._times = 0      # how often said
 
     def __call__(self, lam: float, start: float, steps: int) -> None:
         now = time.perf_counter()
@@ -69,9 +74,12 @@ class ContinuationProgress:
             text += f", {steps} step{'s' if steps > 1 else ''}"
         if self.bar is not None:
             self.bar.set_postfix_str(text, refresh=True)
-        if steps >= 3 and not self._said and self.left is not None and self.left > LONG_CONTINUATION \
-                and covered >= SAID_AFTER * (self.target - start):
-            self._said = True
+        if steps >= 3 and self.left is not None and self.left > max(LONG_CONTINUATION, 2.0 * self._said) \
+                and covered >= SAID_AFTER * (self.target - start) and self._times < SAID_TIMES:
+            # (the pace slows toward a resonance: a forecast first said as it crosses the threshold is
+            # said again when it has doubled, a few times at most; once only, it read "about 10 s
+            # more" in runs that took another 60 s)
+            self._said, self._times = self.left, self._times + 1
             log.warning("%s: the continuation in speed reached %.4g of %.4g rpm in %d steps (%.0f s): about "
                         "%.0f s more at this pace", self.name, lam * rpm, self.target * rpm, steps,
                         now - self.t_start, self.left)
