@@ -608,6 +608,9 @@ def _cmd_continuation(args) -> int:
                           progress=False if args.no_progress else None)
     print(br.describe())
     _publish(out_dir, "continuation", ld.source, lambda folder: write(br, folder, plots=not args.no_plots))
+    if "interrupted" in br.end:  # the files hold what was done; the status says it is not all
+        print(f"kedfem: interrupted: {br.end}; the files in {out_dir} hold the branch so far", file=sys.stderr)
+        return 130
     return 0
 
 

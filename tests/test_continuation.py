@@ -178,3 +178,56 @@ def test_an_unstable_non_linear_response_is_not_called_parametric(branch):
     c = CriticalSpeed("parametric", 100.0, (99.9, 100.1), 6, 1e-3, True, 0.9, 1.1, "onset", (), ("inertia",))
     assert "parametric instability at" in c.describe()
     assert "instability of the non-linear periodic response at" in dataclasses.replace(c, nonlinear=True).describe()
+
+
+def test_an_interrupted_branch_on_the_command_line_is_written_and_exits_130(monkeypatch, tmp_path, capsys):
+    """``kedfem continuation`` stopped by Ctrl-C writes the branch so far and says so by its exit
+    status (130) and a line on stderr (the review's: it exited 0 with files that did not say the
+    branch was cut), and the plot's title names where. Ctrl-C during the error estimates keeps
+    every point, those not reached without their errors."""
+    import logging
+    from kedfem import cli
+    from kedfem.analysis import branch as br
+    from kedfem.analysis import continuation as cont
+    calls = {"n": 0}
+    advance = br.Tracker.advance
+
+    def interrupted(self, p, t):
+        calls["n"] += 1
+        if calls["n"] > 3:
+            raise KeyboardInterrupt
+        return advance(self, p, t)
+
+    monkeypatch.setattr(br.Tracker, "advance", interrupted)
+    scene = tmp_path / "rig.py"
+    scene.write_text("import sys\nsys.path.insert(0, %r)\nfrom test_continuation import rig\n"
+                     "def build():\n    return rig()\n" % str(__import__("pathlib").Path(__file__).parent))
+    root = logging.getLogger("kedfem")
+    before, level = list(root.handlers), root.level
+    try:
+        code = cli.main(["continuation", f"{scene}:build", "--trust", str(scene), "--speeds", "300:900",
+                         "--steps", "48", "--no-errors", "--no-period2", "--no-progress", "--out", str(tmp_path / "out"),
+                         "--effects", "inertia,springs"])
+    finally:
+        root.handlers[:] = before
+        root.setLevel(level)
+    err = capsys.readouterr().err
+    assert code == 130 and "kedfem: interrupted: interrupted at" in err, err
+    assert (tmp_path / "out" / "branch.csv").exists()
+    # Ctrl-C in the error estimates: 5 points tracked, the estimates stopped after the second
+    monkeypatch.setattr(br.Tracker, "advance", advance)
+    read = cont._read
+    done = {"n": 0}
+
+    def stop_reading(scene_of, point, n, errors, periods):
+        if errors:
+            done["n"] += 1
+            if done["n"] > 2:
+                raise KeyboardInterrupt
+        return read(scene_of, point, n, errors, periods)
+
+    monkeypatch.setattr(cont, "_read", stop_reading)
+    sc = kf.Scene(rig(), effects=("inertia", "springs"), damping=kf.Rayleigh(alpha=ALPHA, beta=0.0))
+    b = kf.continuation(sc, 300 * RPM, 900 * RPM, steps=48, errors=True, max_points=5, progress=False)
+    assert len(b.points) == 5 and [bool(p.errors) for p in b.points] == [True, True, False, False, False]
+    assert "error estimates interrupted after 2 of 5 points" in b.end

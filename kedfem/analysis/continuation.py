@@ -54,8 +54,8 @@ class _Pace:
     point on and a tenth of the range, when above :data:`LONG_BRANCH`, and again each time it has
     doubled since (three times at most; a new user's branch ran 28 minutes with nothing said)."""
 
-    def __init__(self, lo: float, hi: float, n: int, unit: tuple, t0: float):
-        self.lo, self.hi, self.n, self.unit, self.t0 = lo, hi, n, unit, t0
+    def __init__(self, lo: float, hi: float, n: int, unit: tuple, t0: float, errors: bool = False):
+        self.lo, self.hi, self.n, self.unit, self.t0, self.errors = lo, hi, n, unit, t0, errors
         self.far = lo
         self.left = None
         self._said, self._times = 0.0, 0
@@ -70,9 +70,11 @@ class _Pace:
                 and covered >= 0.1 * span and self._times < 3):
             self._said, self._times = self.left, self._times + 1
             log.warning("continuation: %s of %s reached in %d points (%.0f s): about %.0f s more at this pace, "
-                        "%d time elements a cycle (steps= fewer, a narrower range or errors=False is faster; "
-                        "Ctrl-C ends the branch where it is and returns it)", in_unit(self.far, self.unit, 5),
-                        in_unit(self.hi, self.unit, 5), points, now - self.t0, self.left, self.n)
+                        "%d time elements a cycle%s (fewer time elements or a narrower range is faster%s; Ctrl-C "
+                        "ends the branch where it has got and returns it)", in_unit(self.far, self.unit, 5),
+                        in_unit(self.hi, self.unit, 5), points, now - self.t0, self.left, self.n,
+                        ", then each point's error estimate (two coarser solves a point)" if self.errors else "",
+                        ", and no error estimates" if self.errors else "")
         return "" if self.left is None else f", about {self.left:.0f} s left"
 
 
@@ -459,7 +461,10 @@ def continuation(scene, lo: float, hi: float, *, parameter: str = "speed", steps
     -------
     Branch
         Interrupted (Ctrl-C) while it is followed, the branch as far as it got (``end``
-        ``"interrupted at ..."``), its points without their errors, no period-2 branch.
+        ``"interrupted at ..."``), its points without their errors, no period-2 branch; while its
+        error estimates are made, every point, those not reached without theirs (``end`` says
+        so). The interrupt ends the call, not the caller: a script looping over branches goes
+        on with the next one.
 
     Raises
     ------
@@ -512,16 +517,25 @@ def continuation(scene, lo: float, hi: float, *, parameter: str = "speed", steps
         if p1 is None:
             raise NonlinearSolveError(f"continuation: no second point near lo = {lo:.6g}", highest=lo)
         pts, found, end = _track(family, p0, p1, lo, hi, max_points, eps, bar, shown_unit,
-                                 _Pace(lo, hi, n, shown_unit, time.perf_counter()))
+                                 _Pace(lo, hi, n, shown_unit, time.perf_counter(), errors))
     finally:
         bar.close()
     if end.startswith("interrupted"):  # what the user stopped: the points as they are, quickly
         errors = period2 = False
     bifs = tuple(Bifurcation(c.kind, c.lam, c.bracket, c.multiplier, bool(sb), bool(sa)) for c, sb, sa in found)
     disable = None if progress is None else not progress
+    read = []
     with tqdm(pts, desc="continuation: peaks and errors" if errors else "continuation: peaks", unit="point",
               file=sys.stderr, delay=2.0, leave=False, disable=disable) as it:
-        points = tuple(_read(scene_of, p, n, errors, 1) for p in it)
+        try:
+            for p in it:
+                read.append(_read(scene_of, p, n, errors, 1))
+        except KeyboardInterrupt:  # the estimates stopped: the rest of the points without theirs
+            end += f"; error estimates interrupted after {len(read)} of {len(pts)} points (Ctrl-C)"
+            log.warning("continuation: %s", end)
+            read += [_read(scene_of, p, n, False, 1) for p in pts[len(read):]]
+            period2 = False
+    points = tuple(read)
     sub = None
     if period2:
         flip = next((c for c, sb, sa in found if c.kind == "flip"), None)

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import accuracy
-from ..solvers import schemes
+from ..solvers import monodromy, schemes
 from ..fe.model import FEModel
 from ..fe.assembler import Assembler
 from ..errors import AccuracyWarning, EffectWarning, InputError, InstabilityWarning, user_stacklevel
@@ -640,14 +640,22 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
                                                           solve=final.solve + time.perf_counter() - t0)
         if not final.converged:
             raise self.failure(final)
+        nonlinear = sc.state_dependent
         for w in final.caught:  # warnings of the result's own solve (coarse levels' are dropped)
-            msg = w.message
-            if issubclass(w.category, InstabilityWarning) and sc.state_dependent:
-                # the linear solve of Newton's last step says "parametric": here it is the orbit's own
-                msg = InstabilityWarning(str(msg).replace(
-                    "parametric instability:", "unstable non-linear periodic response (its linearisation's "
-                    "Floquet multipliers):", 1))
-            warnings.warn_explicit(msg, w.category, w.filename, w.lineno)
+            if nonlinear and issubclass(w.category, InstabilityWarning):
+                continue  # said below, from the result's own multipliers
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        if nonlinear:
+            # the orbit's linearisation, as the result holds it: the linear solve of a last chord step
+            # warned of its frozen tangent's, a run-up's steps of none, and either called a
+            # non-linear orbit's instability "parametric" (a new user read it as the linear machine's)
+            mu = np.asarray(final.discrete.floquet_multipliers)
+            k = int(np.argmax(np.abs(mu))) if mu.size else -1
+            if k >= 0 and abs(mu[k]) > 1.0 + monodromy.INSTABILITY_TOL:
+                warnings.warn(f"unstable non-linear periodic response: the largest Floquet multiplier of its "
+                              f"linearisation |mu| = {abs(mu[k]):.6g} > 1 ({monodromy.instability_kind(mu[k])}); "
+                              "the periodic response exists but is not attracting",
+                              InstabilityWarning, stacklevel=user_stacklevel())
         if est is not None and sc.rtol is not None and not est.met:
             how = (f"{final.n} time elements (steps given)" if sc.steps is not None
                    else f"the largest number of time elements ({final.n}, limit {MAX_STEPS})")

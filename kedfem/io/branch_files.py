@@ -117,7 +117,8 @@ def plot(branch, path, quantity: str = "stress") -> Path:
     ax.set_ylabel(f"peak {quantity} [{unit}]")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize="small")
-    ax.set_title(f"response curve (markers: o fold, s flip, D Neimark-Sacker)")
+    cut = f"\n{branch.end}" if "interrupted" in branch.end else ""  # (a branch stopped by Ctrl-C)
+    ax.set_title(f"response curve (markers: o fold, s flip, D Neimark-Sacker){cut}")
     return _save(fig, path)
 
 
