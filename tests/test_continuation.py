@@ -109,22 +109,29 @@ def test_branch_files(branch, tmp_path):
         kf.read_branch(tmp_path / "nowhere")
 
 
-def test_a_branch_interrupted_returns_its_points_so_far(monkeypatch, caplog):
-    """Ctrl-C while a branch is followed ends it at its last point and returns it (a new user
-    killed a 28-minute branch and had nothing), without the per-point errors and the period-2
-    branch, which would take as long again."""
-    import logging
+def _interrupt_after(monkeypatch, steps: int):
+    """Ctrl-C (KeyboardInterrupt) in the pseudo-arclength step after ``steps`` of them; returns
+    the real step."""
     from kedfem.analysis import branch as br
     calls = {"n": 0}
     advance = br.Tracker.advance
 
     def interrupted(self, p, t):
         calls["n"] += 1
-        if calls["n"] > 5:
+        if calls["n"] > steps:
             raise KeyboardInterrupt
         return advance(self, p, t)
 
     monkeypatch.setattr(br.Tracker, "advance", interrupted)
+    return advance
+
+
+def test_a_branch_interrupted_returns_its_points_so_far(monkeypatch, caplog):
+    """Ctrl-C while a branch is followed ends it at its last point and returns it (a new user
+    killed a 28-minute branch and had nothing), without the per-point errors and the period-2
+    branch, which would take as long again."""
+    import logging
+    _interrupt_after(monkeypatch, 5)
     sc = kf.Scene(rig(), effects=("inertia", "springs"), damping=kf.Rayleigh(alpha=ALPHA, beta=0.0))
     with caplog.at_level(logging.WARNING, logger="kedfem.analysis.continuation"):
         b = kf.continuation(sc, 300 * RPM, 900 * RPM, steps=48, errors=True, progress=False)
@@ -187,18 +194,8 @@ def test_an_interrupted_branch_on_the_command_line_is_written_and_exits_130(monk
     every point, those not reached without their errors."""
     import logging
     from kedfem import cli
-    from kedfem.analysis import branch as br
     from kedfem.analysis import continuation as cont
-    calls = {"n": 0}
-    advance = br.Tracker.advance
-
-    def interrupted(self, p, t):
-        calls["n"] += 1
-        if calls["n"] > 3:
-            raise KeyboardInterrupt
-        return advance(self, p, t)
-
-    monkeypatch.setattr(br.Tracker, "advance", interrupted)
+    advance = _interrupt_after(monkeypatch, 3)
     scene = tmp_path / "rig.py"
     scene.write_text("import sys\nsys.path.insert(0, %r)\nfrom test_continuation import rig\n"
                      "def build():\n    return rig()\n" % str(__import__("pathlib").Path(__file__).parent))
@@ -215,7 +212,8 @@ def test_an_interrupted_branch_on_the_command_line_is_written_and_exits_130(monk
     assert code == 130 and "kedfem: interrupted: interrupted at" in err, err
     assert (tmp_path / "out" / "branch.csv").exists()
     # Ctrl-C in the error estimates: 5 points tracked, the estimates stopped after the second
-    monkeypatch.setattr(br.Tracker, "advance", advance)
+    from kedfem.analysis.branch import Tracker
+    monkeypatch.setattr(Tracker, "advance", advance)
     read = cont._read
     done = {"n": 0}
 

@@ -33,6 +33,7 @@ from ..checks import flag, integer, real
 from ..errors import InputError, KedError, NonlinearSolveError
 from ..solvers import schemes
 from .branch import Family, Point, Tracker, classify, in_unit
+from .progress import Reminder
 from .results import PeriodicResult
 from .scene import Scene
 from ..units import RPM_PER_RAD_S
@@ -43,7 +44,8 @@ log = logging.getLogger(__name__)
 
 #: relative tolerance of a located bifurcation's parameter value
 LOCATE_RTOL = 1e-4
-#: a branch whose rest is forecast longer than this [s] says so in a logged warning, once
+#: a branch whose rest is forecast longer than this [s] says so in a logged warning (again when
+#: that has doubled: :class:`kedfem.analysis.progress.Reminder`)
 LONG_BRANCH = 60.0
 
 
@@ -58,7 +60,7 @@ class _Pace:
         self.lo, self.hi, self.n, self.unit, self.t0, self.errors = lo, hi, n, unit, t0, errors
         self.far = lo
         self.left = None
-        self._said, self._times = 0.0, 0
+        self._tell = Reminder(LONG_BRANCH)
 
     def __call__(self, lam: float, points: int) -> str:
         now = time.perf_counter()
@@ -66,9 +68,7 @@ class _Pace:
         self.far = max(self.far, lam) if up else min(self.far, lam)
         covered, span = abs(self.far - self.lo), abs(self.hi - self.lo)
         self.left = (now - self.t0) * max(span - covered, 0.0) / covered if covered > 0 else None
-        if (points >= 3 and self.left is not None and self.left > max(LONG_BRANCH, 2.0 * self._said)
-                and covered >= 0.1 * span and self._times < 3):
-            self._said, self._times = self.left, self._times + 1
+        if points >= 3 and covered >= 0.1 * span and self._tell.due(self.left):
             log.warning("continuation: %s of %s reached in %d points (%.0f s): about %.0f s more at this pace, "
                         "%d time elements a cycle%s (fewer time elements or a narrower range is faster%s; Ctrl-C "
                         "ends the branch where it has got and returns it)", in_unit(self.far, self.unit, 5),
@@ -455,7 +455,8 @@ def continuation(scene, lo: float, hi: float, *, parameter: str = "speed", steps
         Most points of the branch.
     progress : bool, optional
         A progress bar on stderr (default: on a terminal), with the seconds left at the pace so
-        far; a rest forecast above :data:`LONG_BRANCH` is also said once in a logged warning.
+        far; a rest forecast above :data:`LONG_BRANCH` is also said in a logged warning (again
+        each time it has doubled, three times at most).
 
     Returns
     -------
@@ -545,9 +546,8 @@ def continuation(scene, lo: float, hi: float, *, parameter: str = "speed", steps
                           disable=disable) as bar2:
                     sub = _period2(scene_of, scheme, n, flip, hi, eps, max_points, errors, t0, bar2)
             except KedError as e:
-                shown = (RPM_PER_RAD_S, "rpm") if parameter == "speed" else (1.0, unit)
                 log.warning("continuation: the period-2 response past the flip at %s was not found: %s",
-                            in_unit(flip.lam, shown), e)
+                            in_unit(flip.lam, shown_unit), e)
     return Branch(parameter, unit, points, bifs, n, scheme.name, 1, sub, end, time.perf_counter() - t0,
                   family.solves)
 

@@ -13,6 +13,7 @@ import warnings
 import numpy as np
 
 from ..units import RPM_PER_RAD_S
+from .progress import Reminder
 
 # the steps of a solve log under the pipeline's name (docs/usage.md: the continuation's warning)
 log = logging.getLogger("kedfem.analysis.pipeline")
@@ -56,8 +57,7 @@ class ContinuationProgress:
         self.name, self.target, self.n, self.bar = name, abs(target), n, bar
         self.t_start = None  # when the start was found
         self.left = None     # seconds left, as last forecast
-        self._said = 0.0     # the seconds left last said in the log
-        self._times = 0      # how often said
+        self._tell = Reminder(LONG_CONTINUATION, SAID_TIMES)
 
     def __call__(self, lam: float, start: float, steps: int) -> None:
         now = time.perf_counter()
@@ -74,12 +74,7 @@ class ContinuationProgress:
             text += f", {steps} step{'s' if steps > 1 else ''}"
         if self.bar is not None:
             self.bar.set_postfix_str(text, refresh=True)
-        if steps >= 3 and self.left is not None and self.left > max(LONG_CONTINUATION, 2.0 * self._said) \
-                and covered >= SAID_AFTER * (self.target - start) and self._times < SAID_TIMES:
-            # (the pace slows toward a resonance: a forecast first said as it crosses the threshold is
-            # said again when it has doubled, a few times at most; once only, it read "about 10 s
-            # more" in runs that took another 60 s)
-            self._said, self._times = self.left, self._times + 1
+        if steps >= 3 and covered >= SAID_AFTER * (self.target - start) and self._tell.due(self.left):
             log.warning("%s: the continuation in speed reached %.4g of %.4g rpm in %d steps (%.0f s): about "
                         "%.0f s more at this pace", self.name, lam * rpm, self.target * rpm, steps,
                         now - self.t_start, self.left)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import sys
 
-__all__ = ["bar"]
+__all__ = ["bar", "Reminder"]
 
 
 def bar(desc: str, unit: str, total: int | None = None, progress: bool | None = None, delay: float = 2.0):
@@ -31,3 +31,21 @@ def bar(desc: str, unit: str, total: int | None = None, progress: bool | None = 
     from tqdm.auto import tqdm
     return tqdm(total=total, desc=desc, unit=unit, file=sys.stderr, delay=delay, leave=False,
                 dynamic_ncols=True, disable=None if progress is None else not progress)
+
+
+class Reminder:
+    """When a forecast of the seconds left is worth a logged warning: above ``threshold`` [s],
+    and again each time it has doubled since it was last said, ``times`` times at most (a pace
+    that slows toward a resonance makes a forecast said once, as it crosses the threshold,
+    read "about 10 s more" where 60 s followed)."""
+
+    def __init__(self, threshold: float, times: int = 3):
+        self.threshold, self.times = float(threshold), int(times)
+        self.said, self.count = 0.0, 0
+
+    def due(self, left: float | None) -> bool:
+        """Say ``left`` [s] now? (Counts it as said when so.)"""
+        if left is None or self.count >= self.times or left <= max(self.threshold, 2.0 * self.said):
+            return False
+        self.said, self.count = left, self.count + 1
+        return True
