@@ -30,14 +30,8 @@ part of the cycle carried a large error on the ``N0``-element level is split int
 pieces, ``m`` a power of two with ``m^4`` the ratio of that error to the ``Q`` quantile of the
 elements' errors (at most ``CAP``). The longest element stays ``T / n``, so the resolution and
 stability floors hold as for uniform elements, and every level halves every element of the one
-before. Measured at ``Q = 0.7``, ``N0 = 48``, against the uniform solve (elements: the uniform
-count, the pieces added on top): the press at 1e-3 48 (+173 %) against 192, 0.14 s against 0.17 s,
-at 1e-4 48 against 384, 0.14 s against 0.28 s; the offset slider-crank at 1e-3 384 (+31 %)
-against 768, 0.46 s against 0.69 s (est / true 0.96), at 1e-4 768 both, 0.87 s against 0.60 s;
-the Whitworth (+65 %) at 1e-3 768 against 384, 7.6 s against 1.9 s (its peaks converge at rate
-1.2 over 96/192/384: neither asymptotic nor clear), at 1e-4 768 both, 6.7 s against 4.5 s; the
-shaper (+48 %) 768 and 1536 both, 1.4-1.5x the time. Again a gain only where the error sits at a
-load's kinks.
+before. What it measured on the press, the offset slider-crank, the Whitworth and the shaper (a
+gain only where the error sits at a load's kinks): docs/performance.md, issue 25's twelfth part.
 
 Run::
 
@@ -119,10 +113,9 @@ def refined_edges(n: int, T: float, m, breaks) -> np.ndarray:
         e = np.arange(n + 1) * (T / n)
     part = np.minimum((0.5 * (e[:-1] + e[1:]) / T * m.size).astype(int), m.size - 1)
     k = m[part]
-    frac = np.concatenate([np.arange(kk) / kk for kk in k])
-    left = np.repeat(e[:-1], k)
-    t = np.append(left + frac * np.repeat(np.diff(e), k), T)
-    return t
+    kk = np.repeat(k, k)  # each piece's element's piece count
+    frac = (np.arange(kk.size) - np.repeat(np.cumsum(k) - k, k)) / kk  # its index within the element / count
+    return np.append(np.repeat(e[:-1], k) + frac * np.repeat(np.diff(e), k), T)
 
 
 def solve_graded(scene, edges0=None, warp=None, m=None):
