@@ -41,7 +41,7 @@ from ..model.mechanism import Mechanism
 from ..motion.kinematics import Motion
 from ..motion.kinetostatics import JointForces, KnownForces, kinetostatics
 from .recovery import periodic_rates
-from .peak_search import parabolic_vertex
+from .peak_search import smooth_vertex
 
 __all__ = ["FRAME", "LoadHistory", "LoadPeak", "MachineLoads", "machine_loads", "loads_from_forces", "CSV_COLUMNS"]
 
@@ -103,7 +103,8 @@ class LoadPeak:
         The body the pin holds (``"frame"``), or the driven member.
     response : {"rigid", "elastic"}
     peak : float
-        Largest magnitude over the cycle [N or N m] (a parabolic vertex between the instants).
+        Largest magnitude over the cycle [N or N m] (a parabolic vertex between the instants
+        where the peak is smooth; the largest sample at a step or kink).
     crank_angle : float
         Crank angle of the peak [rad], in ``[0, 2 pi)``.
     rms : float
@@ -221,8 +222,9 @@ class MachineLoads:
     def _peak(self, quantity, joint, member, response, values) -> LoadPeak:
         y = np.abs(values)
         k = int(np.argmax(y))
-        # periodic parabolic vertex through the largest sample and its neighbours
-        value, shift = parabolic_vertex(y, k, periodic=True) if self.whole_cycle else (float(y[k]), 0.0)
+        # periodic parabolic vertex through the largest sample and its neighbours, where smooth (a
+        # process load's step or kink: the sample)
+        value, shift = smooth_vertex(y, k, periodic=True) if self.whole_cycle else (float(y[k]), 0.0)
         step = self.speed * self.period / self.n if self.whole_cycle else 0.0
         angle = float(np.mod(self.crank_angle[k] + shift * step, 2.0 * math.pi))
         return LoadPeak(quantity, joint, member, response, value, angle, float(np.sqrt(np.mean(y * y))))
