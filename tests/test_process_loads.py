@@ -414,3 +414,37 @@ def test_a_load_peak_at_a_step_is_not_overshot_and_a_smooth_peak_keeps_its_verte
     v, dk = smooth_vertex(y, k, periodic=True)
     assert abs(v - 1.0) < 0.01 * (1.0 - y[k])
     assert abs(t[k] + dk * t[1] - 0.05) < 1e-3
+
+
+def test_a_solve_past_its_forecast_says_what_refines_it_and_its_bar_keeps_count(caplog, capsys, monkeypatch):
+    """Each level past the third says what drives the refinement on (the link, the quantity, its
+    estimate) and the elements it is now forecast to end on, and the progress bar's count of levels
+    follows (a new user's toggle press showed '100 % 3/3' then 4/4, 5/5, 6/6). The press at its
+    defaults goes a level past its second level's forecast; the re-forecast names the level it
+    ends on."""
+    import logging
+    import re
+    import tqdm.auto
+    real = tqdm.auto.tqdm
+
+    def shown(*args, **kw):  # the bar at once (a quick solve is otherwise below its delay)
+        kw["delay"] = 0.0
+        return real(*args, **kw)
+    monkeypatch.setattr(tqdm.auto, "tqdm", shown)
+    scene = kf.Scene(press.build(), effects=("inertia", "coupling", "axial_stiffening", "gravity", "loads"),
+                     damping=kf.ModalDamping(0.02))
+    with caplog.at_level(logging.INFO, logger="kedfem"):
+        res = kf.solve(scene, progress=True)
+    msgs = [r.getMessage() for r in caplog.records]
+    levels = [int(x) for m in msgs for x in re.findall(r"level n=(\d+) \(", m)]
+    said = [m for m in msgs if "refining to" in m]
+    assert levels[-1] == res.elements and len(levels) >= 4
+    # one line per level from the third to the last but one, naming the link and the next level
+    assert len(said) == len(levels) - 3
+    for lv, m in zip(levels[2:-1], said):
+        assert f"level n={lv}: refining to {2 * lv} time elements" in m and "'rod'" in m
+    # the last re-forecast ends where the solve ended
+    assert said[-1].endswith(f"(up to {res.elements} elements)")
+    bar = [(int(a), int(b)) for a, b in re.findall(r"(\d+)/(\d+) levels", capsys.readouterr().err)]
+    assert bar and all(a <= b for a, b in bar)
+    assert max(b for _a, b in bar) == len(levels)  # the count ends where the solve did

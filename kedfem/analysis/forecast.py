@@ -10,6 +10,7 @@ import time
 import numpy as np
 
 from ..solvers.nonlinear import PREDICT_FRACTION, PREDICT_MAX_CHANGE
+from .accuracy import ASSUMED_RATE
 from .scene import MAX_STEPS
 
 #: the forecast's read-out of a level for the estimate, before one is measured, as a share of
@@ -71,7 +72,80 @@ class Forecast:
             n = scheme.refine(n)
         return n
 
-    def forecast(self, need: int) -> float:
+    def refinement_driver(self, est, believed: bool) -> tuple[str, int]:
+        """What makes the refinement go on past the last level, and the time elements it is
+        likely to end on, from the last level's estimate ``est``
+        (:class:`kedfem.analysis.accuracy.ErrorEstimate`, or None).
+
+        The reasons are the stopping rule's in :meth:`kedfem.analysis.pipeline._Run._run`, in its
+        order: an estimate that cannot be believed (coarser levels that do not resolve the excited
+        modes), peaks beyond ``rtol``, a rate short of the asymptotic range, histories beyond
+        ``rtol`` below the stability floor, the floor itself. The levels a quantity needs are its
+        estimate extrapolated at its observed rate (before the asymptotic range at least the scheme's
+        assumed rate, :data:`kedfem.analysis.accuracy.ASSUMED_RATE`) until below ``rtol``: a rough guide
+        for the forecast and the progress bar (a toggle press whose histories converged at rate
+        1 after a process load's release took 7 levels where the second level's forecast said 4).
+
+        Returns
+        -------
+        why : str
+            The reason, naming the link and the quantity.
+        target : int
+            Time elements the refinement is likely to end on (at most :data:`MAX_STEPS`).
+        """
+        sc, scheme, n = self.scene, self.scheme, self.levels[-1].n
+        rtol = sc.rtol if sc.rtol is not None else math.inf
+        ratio = scheme.refine(n) / n
+
+        # before the asymptotic range an observed rate is on its way up to the scheme's: credited
+        # the assumed one at least (the toggle press's peaks at rate 1.3 on 48 elements
+        # extrapolated to 12288 elements, 41 s; they met rtol on 96)
+        assumed = ASSUMED_RATE.get(scheme.name, 1.0)
+
+        def after(err: float, rate: float) -> int:  # elements that bring err below rtol
+            rate = max(rate, 1.0) if est.asymptotic else max(rate, assumed)
+            m = scheme.refine(n)
+            while err * (n / m) ** rate > rtol and m < MAX_STEPS:
+                m = scheme.refine(m)
+            return m
+
+        def worst(attr: str):
+            e = max(est.links, key=lambda x: getattr(x, attr))
+            return e.link, getattr(e, attr)
+
+        below = n < self._stab_need
+        if est is None or not est.observed:
+            why, target = "the estimate needs three levels", scheme.refine(n)
+        elif not est.resolved:
+            why = (f"the coarser levels do not resolve the modes the drive excites (they need >= "
+                   f"{self._need} time elements), so their agreement cannot be believed")
+            target = scheme.refine(n)
+            while target / ratio < self._need and target < MAX_STEPS:
+                target = scheme.refine(target)
+        elif est.peak > rtol:
+            link, d = worst("deflection")
+            link_s, s = worst("stress")
+            what, link, err = ("deflection", link, d) if d >= s else ("stress", link_s, s)
+            why = (f"the peak {what} of '{link}' is estimated {err:.1e} off, above rtol {rtol:.0e} "
+                   f"(observed rate {est.rate:.1f})")
+            target = after(err, est.rate)
+        elif not (est.asymptotic or believed or est.settled or est.clear):
+            why = (f"the peaks meet rtol ({est.peak:.1e}) but their observed rate {est.rate:.1f} is short "
+                   f"of the asymptotic range (order {scheme.dense_order}): the estimate is not believed yet")
+            target = scheme.refine(n)
+        elif below and self.stable_beyond_doubt() and est.history > rtol and not self.clearly_stable():
+            link, h = worst("history")
+            why = (f"the peaks meet rtol but the histories over the cycle do not ('{link}' {h:.1e} off, "
+                   f"observed rate {est.history_rate:.1f}); below the stability floor ({self._stab_need} "
+                   f"elements) they must, the bearing loads ride on them")
+            target = after(h, est.history_rate)
+        else:
+            why = (f"the stability verdict needs {self._stab_need} time elements (the scheme's numerical "
+                   f"damping may hide a multiplier near 1 on fewer)")
+            target = max(self._stab_need, scheme.refine(n))
+        return why, min(max(target, scheme.refine(n)), MAX_STEPS)
+
+    def forecast(self, need: int, target: int | None = None) -> float:
         """Seconds the remaining levels are likely to take.
 
         The refinement doubles until three levels agree and the finest resolves the modes the drive
@@ -82,7 +156,8 @@ class Forecast:
         3, 2, 1, 1 solves on its levels, and a forecast per level was 2.9x long), plus the
         read-out of its peaks for the estimate, as measured or, before any, :data:`READ_SHARE`
         of the last level. The whole solve's time is the geometric mean of ending there and of
-        ending a level later.
+        ending a level later. ``target``: the time elements the refinement is expected to end on,
+        when known better than :meth:`forecast_elements` says (:meth:`refinement_driver`).
         """
         lv = self.levels[-1]
         last = self.levels[-2:]
@@ -92,7 +167,8 @@ class Forecast:
         read = (self._t_read / len(self._obs)) if self._obs else READ_SHARE * (
             last[0].kinematics + last[0].assembly + last[0].solve)
         fixed, per = setup[0] + its * one[0], setup[1] + its * one[1]
-        target = self.forecast_elements(need)
+        if target is None:
+            target = self.forecast_elements(need)
         left, n, more = 0.0, lv.n, 0
         while n < target:
             n = self.scheme.refine(n)

@@ -48,6 +48,7 @@ from ..solvers.threads import one_blas_thread
 from .forecast import Forecast
 from .homotopy import Homotopy, phase_sample
 from .level_estimates import LevelEstimates
+from .progress import Reminder
 from .plausibility import check_passive_links, check_result
 from .problem import PeriodicProblem, constant_or_sampled, damping_field, snapped_edges
 from .resolution import ResolutionFloor
@@ -243,6 +244,7 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
         self._t_read = 0.0   # seconds spent reading levels for the estimate
         self.forecast_s = None  # the whole solve's wall time as forecast after its second level [s]
         self._more_levels = 0   # levels the forecast expects after the last one solved
+        self._reminder = Reminder(LONG_SOLVE)  # when a forecast past the second level warns
         self.t_setup = time.perf_counter() - self.t0
 
     def damping_field(self, n: int, several: bool = True) -> DampingField | PiecewiseDampingField | None:
@@ -503,6 +505,24 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
             self._bar.close()
             self._bar = None
 
+    def say_refinement(self, est, believed: bool, need: int) -> None:
+        """Past the forecast's second level, before each further level: log what drives the
+        refinement on (:meth:`refinement_driver`) and the seconds the rest is now forecast to
+        take, set the progress bar's levels to it, and warn (:class:`~kedfem.analysis.progress.Reminder`)
+        where that exceeds :data:`LONG_SOLVE` (a new user's toggle press ran 8x its forecast with
+        its bar at 100 % from the third level on, nothing said about why)."""
+        sc, n = self.scene, self.levels[-1].n
+        why, target = self.refinement_driver(est, believed)
+        left = self.forecast(need, target=target)
+        log.info("%s: level n=%d: refining to %d time elements: %s; forecast %.3g s more (up to %d elements)",
+                 sc.mech.name, n, self.scheme.refine(n), why, left, target)
+        if self._bar is not None:
+            self._bar.total = len(self.levels) + max(self._more_levels, 1)
+            self._bar.refresh()
+        if self._reminder.due(left):
+            log.warning("%s: this solve will take about %.0f s more (up to %d time elements per cycle): %s",
+                        sc.mech.name, left, target, why)
+
     def _unsimulated(self) -> None:
         """One :class:`EffectWarning` per declared item the scene's effects leave out (a spring and
         its preload, a load, a friction, a gravity set with ``set_gravity``): it is not simulated."""
@@ -604,7 +624,8 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
                         est = dest
                 if est is not None:
                     if self._bar is not None and est.peak is not None:
-                        self._bar.set_postfix_str(f"{n} time elements, error {est.peak:.1e}", refresh=True)
+                        hist = f", histories {est.history:.1e}" if sc.rtol and est.history > sc.rtol else ""
+                        self._bar.set_postfix_str(f"{n} time elements, error {est.peak:.1e}{hist}", refresh=True)
                     # before the asymptotic range the estimate is loose (over): refine on; and
                     # on until the scheme's numerical damping leaves the spectral radius right.
                     # Once a level was in the asymptotic range and met rtol, the finer levels the
@@ -623,6 +644,8 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
                         break
                 if scheme.refine(n) > MAX_STEPS:
                     break
+                if len(self.levels) >= 3:
+                    self.say_refinement(est, believed, need)
                 n = scheme.refine(n)
             if self._continue is not None:
                 self.finish()
