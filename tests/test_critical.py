@@ -145,3 +145,43 @@ def test_stability_map_serial(tmp_path):
         stability_map(base, speeds, "speed_rpm", [1.0])
     with pytest.raises(kf.InputError, match="damping.zeta"):
         stability_map(base, speeds, "damping.zeta", [2.0], scheduler="serial")
+
+
+def test_the_buckling_speed_names_the_link_euler_would():
+    """The four-bar preset buckles where its follower's compression from the rigid kinetostatics
+    reaches the pinned-pinned Euler load pi^2 E I / L^2 (forces in speed^2, no gravity: read at
+    400 rpm and scaled), to 3 %; the critical speed names the follower (the coupler's ratio is
+    lower) near the crank angle of its largest compression, and so does a Campbell diagram whose
+    band of mode 1 reaches below 0 Hz, whose crossings there are marked as no resonance."""
+    from kedfem.analysis.campbell import campbell, scene_at
+    scene = catalogue.info("four_bar").scene()
+    rigid = dataclasses.replace(scene_at(scene, 400 * RPM, effects=LINEAR), steps=72, estimate=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = kf.solve(rigid, progress=False)
+    loads, motion = res.loads(), res.motion
+    h = loads.history("rigid")
+    euler = {}
+    for link, (j0, j1) in (("coupler", ("A", "B")), ("follower", ("O4", "B"))):
+        e = np.asarray(motion.position(j1)) - np.asarray(motion.position(j0))
+        e /= np.linalg.norm(e, axis=-1, keepdims=True)
+        push0 = np.sum(h.force[:, loads.bearings.index((j0, link))] * e, axis=-1)   # into the link at j0
+        push1 = -np.sum(h.force[:, loads.bearings.index((j1, link))] * e, axis=-1)  # and at j1
+        comp = np.maximum(push0, push1)
+        lk = scene.mech.links[link]
+        ratio = comp.max() / (math.pi ** 2 * lk.material.E * lk.section.I / lk.length ** 2)
+        euler[link] = (400.0 / math.sqrt(ratio), math.degrees(res.crank_angle[int(np.argmax(comp))]) % 360)
+    assert euler["follower"][0] < euler["coupler"][0]
+    crit = critical_speed(scene, 300 * RPM, 1000 * RPM, kind="buckling", rtol=1e-3)
+    assert abs(crit.rpm / euler["follower"][0] - 1) < 0.03, (crit.rpm, euler)
+    assert crit.buckled is not None and crit.buckled.link == "follower" and crit.buckled.frequency < 0
+    assert abs((math.degrees(crit.buckled.crank_angle) - euler["follower"][1] + 180) % 360 - 180) <= 10
+    assert "link 'follower' buckles" in crit.describe()
+    camp = campbell(scene, np.array([400.0, 500.0, 600.0, 700.0]) * RPM, n_modes=1, harmonics=2,
+                    effects=LINEAR, progress=False)
+    assert camp.buckled.tolist() == [False, False, True, True]
+    assert camp.buckled_ranges(1) == [(600 * RPM, 700 * RPM)]
+    text = camp.describe()
+    assert "mode 1 BUCKLES" in text and "link 'follower' buckles" in text
+    for c, line in zip(camp.crossings, text.splitlines()[1:]):
+        assert ("the mode buckles" in line) == (c.speed_hi >= 600 * RPM)

@@ -36,6 +36,7 @@ from ..checks import choice
 from ..errors import InputError
 from ..fe.effects import LINEAR_EFFECTS
 from ..model.mechanism import Mechanism
+from .buckling import BuckledMode, buckled_mode
 from .modal import natural_frequencies
 from .hooks import hook
 from .progress import bar
@@ -210,6 +211,9 @@ class CampbellResult:
         Crank positions per cycle the bands are taken over.
     name : str
         Scene or mechanism name, for titles.
+    buckling : BuckledMode or None
+        Where a band reaches below 0 Hz: the lowest mode at the first buckled speed and the link
+        that carries most of it (:func:`kedfem.analysis.buckling.buckled_mode`).
     """
 
     speeds: np.ndarray
@@ -220,6 +224,7 @@ class CampbellResult:
     effects: tuple[str, ...]
     nodes: int
     name: str = ""
+    buckling: BuckledMode | None = None
 
     @property
     def rpm(self) -> np.ndarray:
@@ -248,13 +253,40 @@ class CampbellResult:
             raise InputError(f"CampbellResult.band: mode must be an integer in 1 .. {n}, got {mode!r}")
         return self.bands[:, mode - 1, :]
 
+    def buckled_ranges(self, mode: int) -> list[tuple[float, float]]:
+        """Speed ranges [rad/s] (first and last speed analysed) over which mode ``mode``'s band
+        reaches below 0 Hz: a negative stiffness eigenvalue at some crank position (buckled)."""
+        below = self.band(mode)[:, 0] < 0
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], below.astype(int), [0]])))
+        return [(float(self.speeds[a]), float(self.speeds[b - 1])) for a, b in zip(edges[::2], edges[1::2])]
+
     def describe(self) -> str:
-        """The crossings, one per line (or that there is none)."""
+        """The crossings, one per line (or that there is none), and the speeds where a mode buckles.
+
+        A crossing over speeds where its mode's band reaches below 0 Hz is marked: there the mode
+        has a negative stiffness eigenvalue at some crank position (the linkage buckles under its
+        kinetostatic forces), which a crossing of the drive's harmonics does not describe (a new
+        user read the slider-crank's buckled speeds as resonance bands)."""
         head = (f"Campbell diagram of {self.name or 'the scene'}: {self.bands.shape[1]} modes, harmonics "
                 f"1..{int(self.harmonics[-1])}, {self.rpm[0]:.6g} .. {self.rpm[-1]:.6g} rpm ({self.method})")
+        lines = [head]
+        ranges = {j: self.buckled_ranges(j) for j in range(1, self.bands.shape[1] + 1)}
+        for c in self.crossings:
+            over = [(max(a, c.speed_lo), min(b, c.speed_hi)) for a, b in ranges[c.mode]
+                    if a <= c.speed_hi and b >= c.speed_lo]
+            note = "; ".join(f"{a * RPM_PER_RAD_S:.6g} .. {b * RPM_PER_RAD_S:.6g} rpm" for a, b in over)
+            lines.append("  " + c.describe() + (f" (over {note} of it the mode buckles: there the question is "
+                                                f"the linkage's stability, not this resonance)" if over else ""))
         if not self.crossings:
-            return head + "\n  no harmonic of the drive crosses a frequency band"
-        return "\n".join([head] + ["  " + c.describe() for c in self.crossings])
+            lines.append("  no harmonic of the drive crosses a frequency band")
+        for j, rs in ranges.items():
+            if rs:
+                spans = ", ".join(f"{a * RPM_PER_RAD_S:.6g} .. {b * RPM_PER_RAD_S:.6g} rpm" for a, b in rs)
+                who = (f": {self.buckling.describe()} at {rs[0][0] * RPM_PER_RAD_S:.6g} rpm"
+                       if j == 1 and self.buckling is not None else "")
+                lines.append(f"  mode {j} BUCKLES (a negative stiffness eigenvalue at some crank position; its band "
+                             f"reaches below 0 Hz) over {spans}{who}")
+        return "\n".join(lines)
 
     def to_csv(self, path) -> Path:
         """Write the bands: one row per speed and mode (``speed_rad_s``, ``speed_rpm``, ``crank_Hz``,
@@ -434,6 +466,12 @@ def campbell(scene, speeds_rad_s, n_modes: int = 4, harmonics: int = 6, nodes: i
     bands = bands_of(np.stack([f[:, :k] for f in per_speed]))
     ks = np.arange(1, harmonics + 1)
     eff = linear_effects(sc.effects) if method == "modal" else sc.effects
-    res = CampbellResult(s, bands, ks, crossings(s, bands, ks), method, eff, nodes, sc.name or sc.mech.name)
+    buckling = None
+    if np.any(bands[:, 0, 0] < 0):  # which link buckles, at the first buckled speed
+        first = float(s[int(np.argmax(bands[:, 0, 0] < 0))])
+        bsc = scene_at(scene, first, effects=effects, owner=owner)
+        buckling = buckled_mode(bsc.mech, linear_effects(bsc.effects), nodes)
+    res = CampbellResult(s, bands, ks, crossings(s, bands, ks), method, eff, nodes, sc.name or sc.mech.name,
+                         buckling)
     log.info("campbell: %s, %d speeds, %d modes: %d crossings", res.name, s.size, k, len(res.crossings))
     return res

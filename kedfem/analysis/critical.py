@@ -58,6 +58,7 @@ import numpy as np
 
 from ..checks import choice, flag
 from ..errors import AccuracyWarning, ConvergenceWarning, InputError, UnboundedResponseError
+from .buckling import BuckledMode, buckled_mode
 from .campbell import RPM_PER_RAD_S, cycle_frequencies, linear_effects, scene_at
 from .hooks import hook
 from .progress import bar
@@ -142,6 +143,9 @@ class CriticalSpeed:
         the crossing is the loss of stability of its periodic response, whose linearisation
         may be stable where the linear scene's is (``describe`` says so instead of
         "parametric instability").
+    buckled : BuckledMode or None
+        ``kind="buckling"``: the mode at the buckled end of the bracket and the link that carries
+        most of it (:func:`kedfem.analysis.buckling.buckled_mode`).
     """
 
     kind: str
@@ -157,6 +161,7 @@ class CriticalSpeed:
     effects: tuple[str, ...]
     name: str = ""
     nonlinear: bool = False
+    buckled: BuckledMode | None = None
 
     @property
     def rpm(self) -> float:
@@ -184,7 +189,8 @@ class CriticalSpeed:
         return (f"{self.name + ': ' if self.name else ''}{what} at {self.rpm:.2f} rpm ({self.speed:.4f} rad/s), "
                 f"bracket {self.bracket_rpm[0]:.2f} .. {self.bracket_rpm[1]:.2f} rpm (rtol {self.rtol:g} {met}); "
                 f"{self.quantity.split(' [')[0]} {self.value_lo:.6g} / {self.value_hi:.6g} either side; "
-                f"{self.solves} {'solves' if self.kind == 'parametric' else 'modal analyses'}")
+                f"{self.solves} {'solves' if self.kind == 'parametric' else 'modal analyses'}"
+                f"{'; ' + self.buckled.describe() if self.buckled is not None else ''}")
 
 
 # ------------------------------------------------------------ evaluations
@@ -420,7 +426,14 @@ def critical_speed(scene, lo: float, hi: float, *, rtol: float = 5e-3, kind: str
         return ev
 
     with bar("critical speed", "solve" if kind == "parametric" else "speed", max_solves, progress) as pbar:
-        return _search(evaluate, definite, side, lo, hi, scan, kind, what, rtol, evals, max_solves, effects, base)
+        res = _search(evaluate, definite, side, lo, hi, scan, kind, what, rtol, evals, max_solves, effects, base)
+    buckled = [ev for ev in res.evaluations if ev.value < 0]
+    if kind == "buckling" and buckled:  # the link that buckles, at the buckled speed nearest the critical one
+        at = min(buckled, key=lambda ev: abs(ev.speed - res.speed)).speed
+        sc = scene_at(scene, at, effects=effects, owner="critical_speed")
+        res = dataclasses.replace(res, buckled=buckled_mode(sc.mech, linear_effects(sc.effects), nodes))
+    (log.info if res.met else log.warning)("%s", res.describe())
+    return res
 
 
 def _search(evaluate, definite, side, lo, hi, scan, kind, what, rtol, evals, max_solves, effects, base):
@@ -468,5 +481,4 @@ def _search(evaluate, definite, side, lo, hi, scan, kind, what, rtol, evals, max
     res = CriticalSpeed(kind, speed, (xa, xb), len(evals), float(rtol), met, a.value, b.value,
                         "onset" if side_lo < 0 else "exit", tuple(evals), effects, base.name or base.mech.name,
                         nonlinear)
-    (log.info if met else log.warning)("%s", res.describe())
     return res
