@@ -1,6 +1,6 @@
 """kedfem: finite-element Kineto-ElastoDynamics of planar elastic linkages."""
 
-from .errors import (AccuracyWarning, ConvergenceWarning, EffectWarning, InputError, InstabilityWarning, KedError,
+from .errors import (AccuracyWarning, ConvergenceWarning, CostWarning, EffectWarning, InputError, InstabilityWarning, KedError,
                      KinematicsError, LengthWarning, MobilityError, NonlinearSolveError, OptionalDependencyError, PlausibilityWarning, ResonanceError,
                      SingularMassError, UnboundedResponseError)
 from .model.materials import Material, Section

@@ -101,6 +101,11 @@ class AccuracyWarning(UserWarning):
     """A result's estimated time-discretisation error exceeds the scene's tolerance."""
 
 
+class CostWarning(UserWarning):
+    """A modelling choice multiplies a solve's cost where another would not (a process load that
+    steps, ringing modes far above the drive's harmonics)."""
+
+
 def did_you_mean(word, choices) -> str:
     """`` (did you mean 'x'?)`` for the closest of ``choices`` to ``word``, or ``""``."""
     import difflib

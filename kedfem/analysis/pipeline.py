@@ -681,7 +681,8 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
                               InstabilityWarning, stacklevel=user_stacklevel())
         if est is not None and sc.rtol is not None and not est.met:
             how = (f"{final.n} time elements (steps given)" if sc.steps is not None
-                   else f"the largest number of time elements ({final.n}, limit {MAX_STEPS})")
+                   else f"{final.n} time elements, the finest level the refinement reaches (another "
+                        f"doubling would pass the limit of {MAX_STEPS} per cycle)")
             if est.peak > sc.rtol:
                 why = f"estimated error of the peaks {est.peak:.1e} exceeds rtol = {sc.rtol:.0e}"
             elif not est.resolved:

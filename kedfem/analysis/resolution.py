@@ -6,9 +6,11 @@ from __future__ import annotations
 
 import logging
 import math
+import warnings
 
 import numpy as np
 
+from ..errors import CostWarning, user_stacklevel
 from ..fe.assembler import Assembler
 from ..fe.effects.loads import load_force
 
@@ -120,10 +122,15 @@ class ResolutionFloor:
             # load dropped to zero at the dead centre: 6144 elements and 12 s where 768 did)
             n0 = (elements(base) or (1, 0.0))[0]
             if n >= LOAD_WARN_FACTOR * n0:
-                log.warning("%s: a process load steps (a one-stroke load ending at a dead centre, or a table "
-                            "without smooth=True): its harmonics reach %.4g Hz, which asks for >= %d time "
-                            "elements where the motion alone asks for %d; a smooth end (a second load for the "
-                            "other stroke, as examples/press.py) costs fewer", sc.mech.name, f_ld, n, n0)
+                # a Python warning (and the log at info, as the scene's unsimulated effects): a script
+                # run without logging set up saw nothing of the one line that said why its solve took
+                # 8x its forecast (a new user's toggle press)
+                msg = (f"{sc.mech.name}: a process load steps (a one-stroke load ending at a dead centre, or a "
+                       f"table without smooth=True): its harmonics reach {f_ld:.4g} Hz, which asks for >= {n} "
+                       f"time elements where the motion alone asks for {n0}; a smooth end (a second load for "
+                       f"the other stroke, as examples/press.py) costs fewer")
+                log.info("%s", msg)
+                warnings.warn(msg, CostWarning, stacklevel=user_stacklevel())
         return n, f_res
 
     def _motion_band(self, samples: int = 512, level: float = 1e-6) -> float:

@@ -172,9 +172,17 @@ def static_response(mechanism: Mechanism, effects=("gravity", "loads"), crank_an
     effects : sequence of str
         Effects; typically ``gravity``, ``loads``, ``springs`` (and
         ``inertia`` for a quasi-static kinetostatic load case of a running
-        mechanism).
+        mechanism; ``axial_stiffening`` adds the geometric stiffness of the
+        kinetostatic axial forces, which a slender link under compression
+        needs: the same effect names as :class:`kedfem.Scene`'s, so a scene's
+        quasi-static limit is ``static_response(m, scene.effects, angle)``
+        without its dynamic terms).
     crank_angle : float
-        Crank angle [rad] of a driven mechanism.
+        Absolute crank angle [rad] of a driven mechanism: the first driven
+        member's ``a -> b`` line from +x, counter-clockwise, as
+        :attr:`PeriodicResult.crank_angle` and :class:`kedfem.motion.stroke.Stroke`
+        give it (not the angle turned from the drawing, which
+        ``Profile.crank_angle`` tables take).
 
     Returns
     -------

@@ -462,11 +462,13 @@ class Mechanism(JointBuilder, ConsistencyChecks):
         Examples
         --------
         A press's forming force, 40 kN against the ram over the last 10 mm of its down-stroke
-        (the ram ``B`` moves along -y, reaching y = -0.35 m at the bottom dead centre):
+        (the ram ``B`` moves along -y, reaching y = -0.35 m at the bottom dead centre), rising
+        along an S-curve from where the tool meets the part (a step there rings the links' axial
+        modes and costs thousands of time elements, docs/loads.md):
 
         >>> m.load("forming", "B", force=(0.0, 40e3),  # doctest: +SKIP
-        ...        profile=kf.Profile.position("B", (0, -1), [0.34, 0.34, 0.35], [0, 1, 1],
-        ...                                    stroke="forward"))
+        ...        profile=kf.Profile.position("B", (0, -1), [0.34, 0.35], [0, 1],
+        ...                                    stroke="forward", smooth=True))
         """
         owner = f"load '{name}'"
         if not isinstance(name, str) or not name:

@@ -115,6 +115,10 @@ class Profile:
     def crank_angle(cls, degrees, factors, smooth: bool = False) -> "Profile":
         """Factor against the angle the drive has turned from the drawing [deg], periodic.
 
+        The table's 0 is the crank as drawn, not the absolute crank angle that results,
+        :func:`kedfem.static_response` and ``Stroke`` use (a crank drawn at 90 deg from +x reaches
+        the table's 100 deg at an absolute 190 deg).
+
         Parameters
         ----------
         degrees : array_like, shape (k,)

@@ -32,7 +32,8 @@ class Stroke:
     times : ndarray, shape (2,)
         Instants of the rear (smallest position) and front dead centre [s].
     crank_angles : ndarray, shape (2,)
-        Crank angles at those instants [rad], in ``[0, 2 pi)``.
+        Absolute crank angles at those instants [rad], in ``[0, 2 pi)`` (as
+        :attr:`PeriodicResult.crank_angle`; a ``Profile.crank_angle`` table counts from the drawing).
     forward_time, return_time : float
         Time from rear to front dead centre (motion along +axis), and back [s].
     """
