@@ -152,7 +152,8 @@ def test_the_buckling_speed_names_the_link_euler_would():
     reaches the pinned-pinned Euler load pi^2 E I / L^2 (forces in speed^2, no gravity: read at
     400 rpm and scaled), to 3 %; the critical speed names the follower (the coupler's ratio is
     lower) near the crank angle of its largest compression, and so does a Campbell diagram whose
-    band of mode 1 reaches below 0 Hz, whose crossings there are marked as no resonance."""
+    band of mode 1 reaches below 0 Hz, whose crossings there are marked as no resonance, and the
+    instability warning of a solve above that speed (once per solve)."""
     from kedfem.analysis.campbell import campbell, scene_at
     scene = catalogue.info("four_bar").scene()
     rigid = dataclasses.replace(scene_at(scene, 400 * RPM, effects=LINEAR), steps=72, estimate=False)
@@ -185,3 +186,9 @@ def test_the_buckling_speed_names_the_link_euler_would():
     assert "mode 1 BUCKLES" in text and "link 'follower' buckles" in text
     for c, line in zip(camp.crossings, text.splitlines()[1:]):
         assert ("the mode buckles" in line) == (c.speed_hi >= 600 * RPM)
+    # a solve above the buckling speed: one instability warning, which names the link
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        kf.solve(dataclasses.replace(scene_at(scene, 600 * RPM, effects=LINEAR), steps=96), progress=False)
+    said = [str(w.message) for w in caught if issubclass(w.category, kf.InstabilityWarning)]
+    assert len(said) == 1 and "link 'follower' buckles" in said[0], said

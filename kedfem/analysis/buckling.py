@@ -41,8 +41,8 @@ class BuckledMode:
 
     def describe(self) -> str:
         """One phrase: the link, its share, where in the cycle."""
-        return (f"link '{self.link}' buckles ({self.share:.0%} of the mode, {self.frequency:.4g} Hz at crank angle "
-                f"{math.degrees(self.crank_angle) % 360.0:.1f} deg)")
+        return (f"link '{self.link}' buckles ({self.share:.0%} of the mode, {self.frequency:.4g} Hz at absolute crank "
+                f"angle {math.degrees(self.crank_angle) % 360.0:.1f} deg)")
 
 
 def link_shares(model: FEModel, M: np.ndarray, phi: np.ndarray) -> dict[str, float]:

@@ -505,6 +505,20 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
             self._bar.close()
             self._bar = None
 
+    def buckling_note(self) -> str:
+        """``"; ... buckles ..."`` where the scene's linear stiffness has a negative eigenvalue over
+        the cycle (the link and where, :func:`kedfem.analysis.buckling.buckled_mode`), else ``""``:
+        an instability warning above a buckling speed named neither (a new user's wiper linkage)."""
+        if not self._buckled:  # the resolution floor found every stiffness eigenvalue positive
+            return ""
+        from .buckling import buckled_mode
+        from .campbell import linear_effects
+        mode = buckled_mode(self.scene.mech, linear_effects(self.scene.effects))
+        if mode is None:
+            return ""
+        return (f"; the stiffness has a negative eigenvalue over part of the cycle: {mode.describe()} "
+                "(kf.critical_speed(..., kind='buckling') finds the speed it starts at)")
+
     def say_refinement(self, est, believed: bool, need: int) -> None:
         """Past the forecast's second level, before each further level: log what drives the
         refinement on (:meth:`refinement_driver`) and the seconds the rest is now forecast to
@@ -667,7 +681,10 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
         for w in final.caught:  # warnings of the result's own solve (coarse levels' are dropped)
             if nonlinear and issubclass(w.category, InstabilityWarning):
                 continue  # said below, from the result's own multipliers
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+            msg = w.message
+            if issubclass(w.category, InstabilityWarning):
+                msg = f"{msg}{self.buckling_note()}"
+            warnings.warn_explicit(msg, w.category, w.filename, w.lineno)
         if nonlinear:
             # the orbit's linearisation, as the result holds it: the linear solve of a last chord step
             # warned of its frozen tangent's, a run-up's steps of none, and either called a
@@ -677,7 +694,7 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
             if k >= 0 and abs(mu[k]) > 1.0 + monodromy.INSTABILITY_TOL:
                 warnings.warn(f"unstable non-linear periodic response: the largest Floquet multiplier of its "
                               f"linearisation |mu| = {abs(mu[k]):.6g} > 1 ({monodromy.instability_kind(mu[k])}); "
-                              "the periodic response exists but is not attracting",
+                              f"the periodic response exists but is not attracting{self.buckling_note()}",
                               InstabilityWarning, stacklevel=user_stacklevel())
         if est is not None and sc.rtol is not None and not est.met:
             how = (f"{final.n} time elements (steps given)" if sc.steps is not None
