@@ -274,18 +274,21 @@ class CampbellResult:
         for c in self.crossings:
             over = [(max(a, c.speed_lo), min(b, c.speed_hi)) for a, b in ranges[c.mode]
                     if a <= c.speed_hi and b >= c.speed_lo]
-            note = "; ".join(f"{a * RPM_PER_RAD_S:.6g} .. {b * RPM_PER_RAD_S:.6g} rpm" for a, b in over)
+            note = "; ".join(f"{a * RPM_PER_RAD_S:.1f} .. {b * RPM_PER_RAD_S:.1f} rpm" for a, b in over)
             lines.append("  " + c.describe() + (f" (over {note} of it the mode buckles: there the question is "
                                                 f"the linkage's stability, not this resonance)" if over else ""))
         if not self.crossings:
             lines.append("  no harmonic of the drive crosses a frequency band")
+        top = self.speeds[-1]
         for j, rs in ranges.items():
             if rs:
-                spans = ", ".join(f"{a * RPM_PER_RAD_S:.6g} .. {b * RPM_PER_RAD_S:.6g} rpm" for a, b in rs)
-                who = (f": {self.buckling.describe()} at {rs[0][0] * RPM_PER_RAD_S:.6g} rpm"
+                spans = ", ".join(f"{a * RPM_PER_RAD_S:.1f} .. {b * RPM_PER_RAD_S:.1f}{'+' if b >= top else ''} rpm"
+                                  for a, b in rs)
+                who = (f": {self.buckling.describe()} at {rs[0][0] * RPM_PER_RAD_S:.1f} rpm"
                        if j == 1 and self.buckling is not None else "")
                 lines.append(f"  mode {j} BUCKLES (a negative stiffness eigenvalue at some crank position; its band "
-                             f"reaches below 0 Hz) over {spans}{who}")
+                             f"reaches below 0 Hz) over {spans} (the speeds analysed; critical_speed(kind="
+                             f"'buckling') finds the onset){who}")
         return "\n".join(lines)
 
     def to_csv(self, path) -> Path:

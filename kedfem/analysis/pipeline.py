@@ -36,7 +36,7 @@ from . import accuracy
 from ..solvers import monodromy, schemes
 from ..fe.model import FEModel
 from ..fe.assembler import Assembler
-from ..errors import AccuracyWarning, EffectWarning, InputError, InstabilityWarning, user_stacklevel
+from ..errors import AccuracyWarning, CostWarning, EffectWarning, InputError, InstabilityWarning, user_stacklevel
 from ..motion.kinematics import Cycle, kinematics
 from ..fe.modal_damping import DampingField, PiecewiseDampingField
 from ..fe.slots import node_crossings
@@ -280,6 +280,8 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
         sc, scheme = self.scene, self.scheme
         eps = sc.eps if eps is None else max(eps, sc.eps)
         self._continue = None
+        if self._bar is not None:  # the level being solved (the bar said the last one solved)
+            self._bar.set_postfix_str(f"solving {n} time elements", refresh=True)
         ti, prob = self.problem(n)
         tc = time.perf_counter()
         a0 = prob.assembly  # the terms are assembled on the first solve: assembly, not solve time
@@ -714,6 +716,11 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
                 why = (f"estimated error of the peaks {est.peak:.1e} cannot be trusted: no "
                        f"convergence rate observed over three levels")
             warnings.warn(f"{sc.mech.name}: {why}, with {how}", AccuracyWarning, stacklevel=user_stacklevel())
+        cost = self.corner_cost(final.n, max(self._need, scheme.refine(START_ELEMENTS.get(scheme.name, 24))),
+                                time.perf_counter() - self.t0)
+        if cost is not None:
+            log.info("%s", cost)
+            warnings.warn(cost, CostWarning, stacklevel=user_stacklevel())
         res = self.result(final, n_out, error=est, stability=self.stability(est))
         object.__setattr__(res, "path", self.path)
         check_result(res)
