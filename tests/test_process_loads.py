@@ -388,7 +388,9 @@ def test_a_load_that_steps_at_a_dead_centre_is_named_before_the_solve():
         caught.clear()
         n_smooth, _f = pipeline._Run(scene(True)).resolution()
         smooth = [str(w.message) for w in caught if issubclass(w.category, kf.CostWarning)]
-    assert stepped and "one-stroke load ending at a dead centre" in stepped[0] and not smooth
+    # names the load, where it steps (the slider's outer dead centre: the crank along +x) and the cure
+    assert stepped and "'forming' step (on joint B at absolute crank angle 0.0 deg)" in stepped[0] and not smooth
+    assert "a second load for the other stroke where 'forming' ends at a dead centre" in stepped[0]
     assert n_step > n_smooth
 
 

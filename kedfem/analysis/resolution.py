@@ -121,7 +121,8 @@ class ResolutionFloor:
         log.info("%s: excitation reaches %.4g Hz, modes to resolve up to %.4g Hz: >= %d elements",
                  sc.mech.name, reach, f_res, n)
         base = max(f_kin, f_fr)
-        if f_ld > base and self._load_steps():
+        steps = self._load_steps() if f_ld > base else {}
+        if steps:
             # a process load whose profile steps or kinks rings modes far above the drive's
             # harmonics: say so where it multiplies the elements (a new user's one-stroke forming
             # load dropped to zero at the dead centre: 6144 elements and 12 s where 768 did)
@@ -130,10 +131,18 @@ class ResolutionFloor:
                 # a Python warning (and the log at info, as the scene's unsimulated effects): a script
                 # run without logging set up saw nothing of the one line that said why its solve took
                 # 8x its forecast (a new user's toggle press)
-                msg = (f"{sc.mech.name}: a process load steps (a one-stroke load ending at a dead centre, or a "
-                       f"table without smooth=True): its harmonics reach {f_ld:.4g} Hz, which asks for >= {n} "
-                       f"time elements where the motion alone asks for {n0}; a smooth end (a second load for "
-                       f"the other stroke, as examples/press.py) costs fewer")
+                where = ", ".join(f"on joint {j} at absolute crank angle {math.degrees(a) % 360:.1f} deg"
+                                  for j, a in steps.items())
+                names = [name for name, ld in sc.mech.loads.items() if ld.profile is not None and ld.joint in steps]
+                one_stroke = [name for name in names if sc.mech.loads[name].profile.stroke != "both"]
+                rough = [name for name in names if not sc.mech.loads[name].profile.smooth]
+                cures = ([f"smooth=True on {', '.join(repr(x) for x in rough)} (S-curves between its table's "
+                          f"entries)"] if rough else []) + (
+                    [f"a second load for the other stroke where {', '.join(repr(x) for x in one_stroke)} ends "
+                     f"at a dead centre (as examples/press.py)"] if one_stroke else [])
+                msg = (f"{sc.mech.name}: process load(s) {', '.join(repr(x) for x in names)} step ({where}): "
+                       f"their harmonics reach {f_ld:.4g} Hz, which asks for >= {n} time elements where the "
+                       f"motion alone asks for {n0}; {' or '.join(cures) or 'a smooth table'} costs fewer")
                 log.info("%s", msg)
                 warnings.warn(msg, CostWarning, stacklevel=user_stacklevel())
                 self._cost_said = True
@@ -215,15 +224,18 @@ class ResolutionFloor:
                 f"(no smooth=True), where the response converges slowly: smooth=True (S-curves between the "
                 f"entries) usually ends on far fewer elements")
 
-    def _load_steps(self, samples: int = 16384, jump: float = 0.2) -> bool:
-        """A process load on some joint changes by more than ``jump`` of its largest between two of
-        ``samples`` instants per cycle: it steps (a one-stroke load at a dead centre, a table
-        without smoothing), where a smooth one, however steep, changes by a sliver per sample."""
-        for F in self._joint_loads(samples).values():
+    def _load_steps(self, samples: int = 16384, jump: float = 0.2) -> dict[str, float]:
+        """The joints whose process loads change by more than ``jump`` of their largest between two
+        of ``samples`` instants per cycle, with the absolute crank angle [rad] of the largest such
+        change: they step (a one-stroke load at a dead centre, a table without smoothing), where a
+        smooth one, however steep, changes by a sliver per sample."""
+        out = {}
+        for joint, F in self._joint_loads(samples).items():
             big = float(np.abs(F).max())
-            if big > 0 and float(np.abs(np.diff(F, axis=0, append=F[:1])).max()) > jump * big:
-                return True
-        return False
+            change = np.abs(np.diff(F, axis=0, append=F[:1])).max(axis=1)
+            if big > 0 and float(change.max()) > jump * big:
+                out[joint] = float(self._band_motion(samples).crank_angle[(int(np.argmax(change)) + 1) % samples])
+        return out
 
     def _band_motion(self, samples: int):
         """The rigid-body motion at ``samples`` equally spaced instants (computed once)."""
