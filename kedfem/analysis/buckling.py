@@ -82,7 +82,7 @@ def buckled_mode(mechanism, effects, steps: int = 36) -> BuckledMode | None:
     mechanism : Mechanism
         At the speed in question.
     effects : sequence of str
-        Linear effects of the stiffness (as :func:`kedfem.analysis.campbell.linear_effects` gives).
+        Linear effects of the stiffness (as :func:`kedfem.fe.effects.linear_effects` gives).
     steps : int
         Crank positions over the cycle.
     """

@@ -34,7 +34,7 @@ import numpy as np
 
 from ..checks import choice
 from ..errors import InputError
-from ..fe.effects import LINEAR_EFFECTS
+from ..fe.effects import LINEAR_EFFECTS, linear_effects
 from ..model.mechanism import Mechanism
 from .buckling import BuckledMode, buckled_mode
 from .modal import natural_frequencies
@@ -52,17 +52,6 @@ log = logging.getLogger(__name__)
 BAND_STATS = ("min", "mean", "max")
 #: Campbell methods: modal analysis on the rigid-body motion, or the frequencies of a periodic solve.
 METHODS = ("modal", "solve")
-
-
-def linear_effects(effects: Sequence[str]) -> tuple[str, ...]:
-    """The effects with ``geometric_nonlinearity`` replaced by its linear part ``axial_stiffening``.
-
-    The von Karman term stiffens the links by their actual axial forces, of which
-    the kinetostatic ones (``axial_stiffening``) are what the rigid-body motion
-    gives; the modal analysis and the linearised stability questions use those.
-    """
-    out = ["axial_stiffening" if e == "geometric_nonlinearity" else e for e in effects]
-    return tuple(dict.fromkeys(out))
 
 
 def scene_at(source, speed: float, *, effects: Sequence[str] | None = None, owner: str = "campbell") -> Scene:

@@ -40,7 +40,7 @@ continuation in speed where Newton's method alone does not), each evaluation
 starting from the response at the nearest speed already solved. ``linear=True``
 asks it of the linearised KED equations about the rigid-body motion instead:
 ``geometric_nonlinearity`` is replaced by ``axial_stiffening``
-(:func:`kedfem.analysis.campbell.linear_effects`), as in ``benchmarks/stability.py``.
+(:func:`kedfem.fe.effects.linear_effects`), as in ``benchmarks/stability.py``.
 Where a stable orbit turns back at a fold, :func:`kedfem.continuation` follows the
 whole response curve and locates the change of stability there.
 """
@@ -59,7 +59,8 @@ import numpy as np
 from ..checks import choice, flag
 from ..errors import AccuracyWarning, ConvergenceWarning, InputError, UnboundedResponseError
 from .buckling import BuckledMode, buckled_mode
-from .campbell import RPM_PER_RAD_S, cycle_frequencies, linear_effects, scene_at
+from ..fe.effects import linear_effects
+from .campbell import RPM_PER_RAD_S, cycle_frequencies, scene_at
 from .hooks import hook
 from .progress import bar
 from .scene import Scene, _int

@@ -514,7 +514,7 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
         if not self._buckled:  # the resolution floor found every stiffness eigenvalue positive
             return ""
         from .buckling import buckled_mode
-        from .campbell import linear_effects
+        from ..fe.effects import linear_effects
         mode = buckled_mode(self.scene.mech, linear_effects(self.scene.effects))
         if mode is None:
             return ""

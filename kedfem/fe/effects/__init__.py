@@ -44,7 +44,7 @@ from .inertia import Inertia
 from .loads import Loads
 from .springs import Springs
 
-__all__ = ["EFFECTS", "LINEAR_EFFECTS", "declared_items", "default_effects", "unsimulated", "DEFAULT_ZETA", "Effect", "register_effect", "check_effects", "chosen", "Rayleigh",
+__all__ = ["EFFECTS", "LINEAR_EFFECTS", "linear_effects", "declared_items", "default_effects", "unsimulated", "DEFAULT_ZETA", "Effect", "register_effect", "check_effects", "chosen", "Rayleigh",
            "ModalDamping"]
 
 _BUILT_IN = (
@@ -63,6 +63,17 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in _BUILT_IN}
 #: The linear KED effect set: rigid-body inertia, the rigid-elastic coupling and the links'
 #: stiffening by their kinetostatic axial forces.
 LINEAR_EFFECTS = ("inertia", "coupling", "axial_stiffening")
+
+
+def linear_effects(effects) -> tuple[str, ...]:
+    """The effects with ``geometric_nonlinearity`` replaced by its linear part ``axial_stiffening``.
+
+    The von Karman term stiffens the links by their actual axial forces, of which
+    the kinetostatic ones (``axial_stiffening``) are what the rigid-body motion
+    gives; the modal analysis and the linearised stability questions use those.
+    """
+    out = ["axial_stiffening" if e == "geometric_nonlinearity" else e for e in effects]
+    return tuple(dict.fromkeys(out))
 
 
 def declared_items(mech) -> dict[str, list[str]]:
