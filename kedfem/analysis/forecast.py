@@ -110,8 +110,8 @@ class Forecast:
             return m
 
         def worst(attr: str):
-            e = max(est.links, key=lambda x: getattr(x, attr))
-            return e.link, getattr(e, attr)
+            e = max(est.links, key=lambda x: getattr(x, attr), default=None)
+            return (e.link, getattr(e, attr)) if e is not None else ("(none)", 0.0)
 
         below = n < self._stab_need
         if est is None or not est.observed:
