@@ -156,6 +156,47 @@ def strip_crank_rocker(rpm: float = 450.0, coupler_h: float = 0.006, elements: i
     return m
 
 
+def knuckle_press(rpm: float = 60.0, force: float = 100e3, travel: float = 0.002, smooth: bool = True,
+                  elements: int = 4) -> kf.Mechanism:
+    """A new user's knuckle-joint (toggle) press (issue 25, thirteenth part): rigid crank 30 mm about
+    O = (0.34, 0.12), steel rod 300 mm (20 x 20 mm) to the knee C, upper toggle 200 mm from P = (0, 0.3)
+    to C and lower toggle 200 mm from C to the ram B on the line x = 0 (both 30 x 30 mm), 30 kg ram.
+    A forming force ``force`` [N] on the ram over the last ``travel`` [m] of its down-stroke and a
+    springback over ``travel / 4`` on the way back (S-curves with ``smooth``, else straight ramps).
+    Not in ``CASES``: at 60 rpm its refinement is driven by the histories (the ringing of the
+    toggles after the springback), 7 levels where the second level's forecast said 4."""
+    P, O, r, rod, toggle = np.array([0.0, 0.3]), np.array([0.34, 0.12]), 0.03, 0.3, 0.2
+
+    def knee(theta):
+        return _circle(P, toggle, O + r * np.array([math.cos(theta), math.sin(theta)]), rod, upper=False)
+
+    def depth(theta):  # the ram's depth below the origin
+        C = knee(theta)
+        return -(C[1] - math.sqrt(toggle**2 - C[0] ** 2))
+
+    C = knee(0.0)
+    m = kf.Mechanism("knuckle press")
+    m.ground("O", at=tuple(O))
+    m.ground("P", at=tuple(P))
+    m.joint("A", at=tuple(O + np.array([r, 0.0])))
+    m.joint("C", at=tuple(C))
+    m.slider("B", at=(0.0, -depth(0.0)), axis=(0.0, 1.0))
+    m.link("crank", "O", "A", rigid=True, mass=2.0, J=2.0 * r**2 / 12)
+    m.link("rod", "A", "C", material=STEEL, section=kf.Section.rectangle(0.02, 0.02), elements=elements)
+    m.link("upper", "P", "C", material=STEEL, section=kf.Section.rectangle(0.03, 0.03), elements=elements)
+    m.link("lower", "C", "B", material=STEEL, section=kf.Section.rectangle(0.03, 0.03), elements=elements)
+    m.point_mass("B", 30.0)
+    m.drive("crank", speed=rpm * 2 * math.pi / 60)
+    if force:
+        bdc = max(depth(th) for th in np.linspace(0.0, 2 * math.pi, 2001))
+        down = (0.0, -1.0)
+        m.load("forming", "B", force=(0.0, force), profile=kf.Profile.position(
+            "B", down, [bdc - travel, bdc], [0.0, 1.0], stroke="forward", smooth=smooth))
+        m.load("springback", "B", force=(0.0, force), profile=kf.Profile.position(
+            "B", down, [bdc - travel / 4, bdc], [0.0, 1.0], stroke="return", smooth=smooth))
+    return m
+
+
 CASES = {
     "crank_rocker": (crank_rocker, ("inertia", "coupling", "axial_stiffening"), kf.ModalDamping(0.02)),
     "drag_link": (drag_link, ("inertia", "coupling", "axial_stiffening"), kf.ModalDamping(0.02)),
