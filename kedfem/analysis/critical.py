@@ -187,8 +187,11 @@ class CriticalSpeed:
         if self.direction == "exit":
             what = f"end of {what}"
         met = "met" if self.met else "NOT met"
+        lo, hi = self.bracket_rpm
+        # decimals that tell the bracket's ends apart (a new user read "3205.14 .. 3205.14 rpm")
+        dec = 2 if hi - lo <= 0 else min(max(2, math.ceil(-math.log10((hi - lo) / 2.0))), 9)
         return (f"{self.name + ': ' if self.name else ''}{what} at {self.rpm:.2f} rpm ({self.speed:.4f} rad/s), "
-                f"bracket {self.bracket_rpm[0]:.2f} .. {self.bracket_rpm[1]:.2f} rpm (rtol {self.rtol:g} {met}); "
+                f"bracket {lo:.{dec}f} .. {hi:.{dec}f} rpm (rtol {self.rtol:g} {met}); "
                 f"{self.quantity.split(' [')[0]} {self.value_lo:.6g} / {self.value_hi:.6g} either side; "
                 f"{self.solves} {'solves' if self.kind == 'parametric' else 'modal analyses'}"
                 f"{'; ' + self.buckled.describe() if self.buckled is not None else ''}")

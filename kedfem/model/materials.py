@@ -20,6 +20,10 @@ MAX_LENGTH = 1e6
 MAX_MODULUS = 1e16
 #: Largest density [kg/m^3] (osmium: 22.6e3; beyond, a unit mistake)
 MAX_DENSITY = 1e5
+#: Smallest Young's modulus [Pa] a material may have (soft rubber: 1e6 Pa; a deliberately soft
+#: test linkage: 7e4 Pa; below, a modulus given in GPa or kN/mm^2, which ran a new user's solve for
+#: 9 s to a result 400 % of its length deflected)
+MIN_MODULUS = 1e4
 
 
 def _positive(owner: str, name: str, value) -> float:
@@ -60,6 +64,10 @@ class Material:
 
     def __post_init__(self):
         object.__setattr__(self, "E", real("Material", "E", self.E, positive=True, limit=MAX_MODULUS, unit=" Pa"))
+        if self.E < MIN_MODULUS:
+            raise InputError(f"Material: E = {self.E:g} Pa is below {MIN_MODULUS:g} Pa, softer than any solid a "
+                             f"linkage is made of: E is in Pa (steel 2.1e11 Pa, aluminium 7e10 Pa; "
+                             f"{self.E:g} GPa is {self.E:g}e9 Pa)")
         object.__setattr__(self, "rho", real("Material", "rho", self.rho, positive=True, limit=MAX_DENSITY,
                                              unit=" kg/m^3"))
         if isinstance(self.nu, bool):
