@@ -389,9 +389,21 @@ def test_a_load_that_steps_at_a_dead_centre_is_named_before_the_solve():
         n_smooth, _f = pipeline._Run(scene(True)).resolution()
         smooth = [str(w.message) for w in caught if issubclass(w.category, kf.CostWarning)]
     # names the load, where it steps (the slider's outer dead centre: the crank along +x) and the cure
-    assert stepped and "'forming' step (on joint B at absolute crank angle 0.0 deg)" in stepped[0] and not smooth
-    assert "a second load for the other stroke where 'forming' ends at a dead centre" in stepped[0]
+    assert stepped and "process load(s) 'forming' step" in stepped[0] and not smooth
+    assert ("'forming' at absolute crank angle 0.0 deg: a second load for the other stroke, where it ends at a "
+            "dead centre") in stepped[0]
     assert n_step > n_smooth
+    # a crank-angle table's repeated entry on the same joint as two smooth loads of 0 N: the table is
+    # named, with the cure for a repeated entry (a new reviewer: every load on the joint was named)
+    m = press.build(forming_force=0.0)
+    m.load("step", "B", force=(0.0, 40e3), profile=kf.Profile.crank_angle([0, 100.3, 100.3, 140, 360],
+                                                                           [0, 0, 1, 0, 0], smooth=True))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        pipeline._Run(kf.Scene(m, effects=("inertia", "coupling", "axial_stiffening", "loads"))).resolution()
+    said = [str(w.message) for w in caught if issubclass(w.category, kf.CostWarning)]
+    assert len(said) == 1 and "process load(s) 'step' step" in said[0] and "'forming'" not in said[0]
+    assert "'step' at absolute crank angle 190.3 deg: a short ramp for its table's repeated entry" in said[0]
 
 
 def catalogue_scene(name):

@@ -91,7 +91,8 @@ class Forecast:
         why : str
             The reason, naming the link and the quantity.
         target : int
-            Time elements the refinement is likely to end on (at most :data:`MAX_STEPS`).
+            Time elements the refinement is likely to end on (at most the finest level it can
+            reach without passing :data:`MAX_STEPS`).
         """
         sc, scheme, n = self.scene, self.scheme, self.levels[-1].n
         rtol = sc.rtol if sc.rtol is not None else math.inf
@@ -102,10 +103,14 @@ class Forecast:
         # extrapolated to 12288 elements, 41 s; they met rtol on 96)
         assumed = ASSUMED_RATE.get(scheme.name, 1.0)
 
+        top = n  # the finest level the refinement can reach (it stops before passing MAX_STEPS)
+        while scheme.refine(top) <= MAX_STEPS:
+            top = scheme.refine(top)
+
         def after(err: float, rate: float) -> int:  # elements that bring err below rtol
             rate = max(rate, 1.0) if est.asymptotic else max(rate, assumed)
             m = scheme.refine(n)
-            while err * (n / m) ** rate > rtol and m < MAX_STEPS:
+            while err * (n / m) ** rate > rtol and m < top:
                 m = scheme.refine(m)
             return m
 
@@ -120,7 +125,7 @@ class Forecast:
             why = (f"the coarser levels do not resolve the modes the drive excites (they need >= "
                    f"{self._need} time elements), so their agreement cannot be believed")
             target = scheme.refine(n)
-            while target / ratio < self._need and target < MAX_STEPS:
+            while target / ratio < self._need and target < top:
                 target = scheme.refine(target)
         elif est.peak > rtol:
             link, d = worst("deflection")
@@ -143,7 +148,7 @@ class Forecast:
             why = (f"the stability verdict needs {self._stab_need} time elements (the scheme's numerical "
                    f"damping may hide a multiplier near 1 on fewer)")
             target = max(self._stab_need, scheme.refine(n))
-        return why, min(max(target, scheme.refine(n)), MAX_STEPS)
+        return why, min(max(target, scheme.refine(n)), top)
 
     def forecast(self, need: int, target: int | None = None) -> float:
         """Seconds the remaining levels are likely to take.
@@ -177,11 +182,11 @@ class Forecast:
         self._more_levels = more
         # the estimate reads every level once: those solved so far that it has not read yet
         left += read * max(0, len(self.levels) - len(self._obs))
-        if target < MAX_STEPS:
+        n = self.scheme.refine(max(target, lv.n))
+        if n <= MAX_STEPS:  # (a level more than the finest the refinement can reach is no outcome)
             # the refinement often takes one level more than the differences suggest (a quantity
             # before its asymptotic range, the histories below the stability floor): the geometric
             # mean of the two outcomes is within 2x of either
-            n = self.scheme.refine(max(target, lv.n))
             spent = time.perf_counter() - self.t0
             left = math.sqrt((spent + left) * (spent + left + fixed + per * n + read)) - spent
         return left

@@ -418,14 +418,17 @@ def _near_peaks(result, loads: MachineLoads) -> MachineLoads:
     step = loads.period / loads.n
     offsets = np.linspace(-step, step, NEAR_POINTS)
     centres = np.concatenate([loads.t[np.argmax(_magnitudes(loads.history(r)), axis=0)] for r in responses])
-    fine = machine_loads(result.resample(np.mod(centres[:, None] + offsets, loads.period).ravel()),
+    # the loads of a joint peak on the same sample (a pin's force on a link and on the frame): one
+    # neighbourhood per distinct sample
+    unique, which = np.unique(centres, return_inverse=True)
+    fine = machine_loads(result.resample(np.mod(unique[:, None] + offsets, loads.period).ravel()),
                          elastic=loads.elastic is not None, near=False)
     q = centres.size // len(responses)
     near = {}
     for i, r in enumerate(responses):
-        vals = _magnitudes(fine.history(r)).reshape(len(responses) * q, NEAR_POINTS, q)
-        rows = np.arange(i * q, (i + 1) * q)
-        ang = fine.crank_angle.reshape(len(responses) * q, NEAR_POINTS)[rows]
+        vals = _magnitudes(fine.history(r)).reshape(unique.size, NEAR_POINTS, q)
+        rows = which.ravel()[i * q:(i + 1) * q]
+        ang = fine.crank_angle.reshape(unique.size, NEAR_POINTS)[rows]
         near[r] = (vals[rows, :, np.arange(q)], np.unwrap(ang, axis=1))
     return dataclasses.replace(loads, near=near)
 

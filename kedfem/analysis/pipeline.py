@@ -599,7 +599,7 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
                     if self._bar is not None:  # the levels expected (the bar runs on if more are needed)
                         self._bar.total = len(self.levels) + self._more_levels
                         self._bar.refresh()
-                    if len(self.levels) == 1 and left > LONG_SOLVE:
+                    if len(self.levels) == 1 and self._reminder.due(left):  # (then again only when doubled)
                         why = "a looser rtol or a coarser mesh is faster"
                         if getattr(self, "_friction_reach", 0.0):  # the reversal sets the resolution
                             smooth = min(f.smoothing for f in sc.mech.frictions.values())

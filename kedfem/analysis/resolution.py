@@ -131,18 +131,22 @@ class ResolutionFloor:
                 # a Python warning (and the log at info, as the scene's unsimulated effects): a script
                 # run without logging set up saw nothing of the one line that said why its solve took
                 # 8x its forecast (a new user's toggle press)
-                where = ", ".join(f"on joint {j} at absolute crank angle {math.degrees(a) % 360:.1f} deg"
-                                  for j, a in steps.items())
-                names = [name for name, ld in sc.mech.loads.items() if ld.profile is not None and ld.joint in steps]
-                one_stroke = [name for name in names if sc.mech.loads[name].profile.stroke != "both"]
-                rough = [name for name in names if not sc.mech.loads[name].profile.smooth]
-                cures = ([f"smooth=True on {', '.join(repr(x) for x in rough)} (S-curves between its table's "
-                          f"entries)"] if rough else []) + (
-                    [f"a second load for the other stroke where {', '.join(repr(x) for x in one_stroke)} ends "
-                     f"at a dead centre (as examples/press.py)"] if one_stroke else [])
-                msg = (f"{sc.mech.name}: process load(s) {', '.join(repr(x) for x in names)} step ({where}): "
-                       f"their harmonics reach {f_ld:.4g} Hz, which asks for >= {n} time elements where the "
-                       f"motion alone asks for {n0}; {' or '.join(cures) or 'a smooth table'} costs fewer")
+                cures = []
+                for name, angle in steps.items():
+                    prof = sc.mech.loads[name].profile
+                    at = f"'{name}' at absolute crank angle {math.degrees(angle) % 360:.1f} deg"
+                    if np.any(np.diff(prof.x) == 0):  # a repeated entry: a step smooth=True keeps
+                        cures.append(f"{at}: a short ramp for its table's repeated entry, with smooth=True")
+                    elif prof.stroke != "both":
+                        cures.append(f"{at}: a second load for the other stroke, where it ends at a dead "
+                                     f"centre (as examples/press.py)")
+                    else:
+                        cures.append(f"{at}: smooth=True (S-curves between its table's entries)")
+                alone = (f"the motion alone asks for {n0}" if n0 > 1 else
+                         "the motion alone is quasi-static")
+                msg = (f"{sc.mech.name}: process load(s) {', '.join(repr(x) for x in steps)} step: their "
+                       f"harmonics reach {f_ld:.4g} Hz, which asks for >= {n} time elements where {alone}; "
+                       f"these cost fewer: {'; '.join(cures)}")
                 log.info("%s", msg)
                 warnings.warn(msg, CostWarning, stacklevel=user_stacklevel())
                 self._cost_said = True
@@ -225,16 +229,26 @@ class ResolutionFloor:
                 f"entries) usually ends on far fewer elements")
 
     def _load_steps(self, samples: int = 16384, jump: float = 0.2) -> dict[str, float]:
-        """The joints whose process loads change by more than ``jump`` of their largest between two
-        of ``samples`` instants per cycle, with the absolute crank angle [rad] of the largest such
-        change: they step (a one-stroke load at a dead centre, a table without smoothing), where a
-        smooth one, however steep, changes by a sliver per sample."""
+        """The process loads that step, with the absolute crank angle [rad] of the step: where the
+        loads on a joint together change by more than ``jump`` of their largest between two of
+        ``samples`` instants per cycle (a one-stroke load at a dead centre, a table without
+        smoothing; a smooth one, however steep, changes by a sliver per sample), those among them
+        that change by more than half of that there on their own (a press's forward and return
+        loads that meet at the dead centre step each, not together)."""
+        mech, mo = self.scene.mech, self._band_motion(samples)
         out = {}
         for joint, F in self._joint_loads(samples).items():
             big = float(np.abs(F).max())
             change = np.abs(np.diff(F, axis=0, append=F[:1])).max(axis=1)
-            if big > 0 and float(change.max()) > jump * big:
-                out[joint] = float(self._band_motion(samples).crank_angle[(int(np.argmax(change)) + 1) % samples])
+            if not (big > 0 and float(change.max()) > jump * big):
+                continue
+            k = int(np.argmax(change))
+            for name, ld in mech.loads.items():
+                if ld.profile is None or ld.joint != joint:
+                    continue
+                f = load_force(mo, ld)
+                if float(np.abs(f[(k + 1) % samples] - f[k]).max()) > 0.5 * change[k]:
+                    out[name] = float(mo.crank_angle[(k + 1) % samples])
         return out
 
     def _band_motion(self, samples: int):
