@@ -511,7 +511,10 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
         """``"; ... buckles ..."`` where the scene's linear stiffness has a negative eigenvalue over
         the cycle (the link and where, :func:`kedfem.analysis.buckling.buckled_mode`), else ``""``:
         an instability warning above a buckling speed named neither (a new user's wiper linkage)."""
-        if not self._buckled:  # the resolution floor found every stiffness eigenvalue positive
+        if self._bands is None or not self._buckled:
+            # the resolution floor found every stiffness eigenvalue positive, or did not look (steps
+            # given without an estimate: a stability map's points, which would each pay a modal
+            # analysis for a warning they catch)
             return ""
         from .buckling import buckled_mode
         from ..fe.effects import linear_effects
