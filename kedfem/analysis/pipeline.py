@@ -704,7 +704,8 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
         if est is not None and sc.rtol is not None and not est.met:
             how = (f"{final.n} time elements (steps given)" if sc.steps is not None
                    else f"{final.n} time elements, the finest level the refinement reaches (another "
-                        f"doubling would pass the limit of {MAX_STEPS} per cycle)")
+                        f"doubling would pass the limit of {MAX_STEPS} per cycle)" if scheme.refine(final.n) > MAX_STEPS
+                   else f"{final.n} time elements, where the refinement stopped")
             if est.peak > sc.rtol:
                 why = f"estimated error of the peaks {est.peak:.1e} exceeds rtol = {sc.rtol:.0e}"
             elif not est.resolved:
