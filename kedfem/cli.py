@@ -115,7 +115,12 @@ def _load(target: str | None, overrides: dict, trusted=None) -> _Loaded:
     if target is None:
         return _Loaded(spec.scene, spec.outputs, {"mechanism": None, "name": spec.scene.name, **data}, {}, source,
                        trust)
-    return _Loaded(spec.scene, spec.outputs, data, {}, f"{source} (preset scene)", trust)
+    # a builder of the user's own that declares no PRESET runs kedfem's default scene for it (a new
+    # user's six-bar was said to run a "preset scene" it never declared)
+    declared = catalogue.info(key, trust=trust).preset != catalogue.Preset()
+    return _Loaded(spec.scene, spec.outputs, data, {},
+                   f"{source} ({'preset scene' if declared else 'no PRESET: the default effects and damping'})",
+                   trust)
 
 
 @contextlib.contextmanager
