@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..fe.assembler import Assembler
+from ..fe.effects import linear_effects
 from ..fe.model import FEModel
 from ..motion.kinematics import kinematics
 from .modal import eig_frequencies
@@ -73,7 +74,7 @@ def link_shares(model: FEModel, M: np.ndarray, phi: np.ndarray) -> dict[str, flo
     return out
 
 
-def buckled_mode(mechanism, effects, steps: int = 36) -> BuckledMode | None:
+def buckled_mode(mechanism, effects, steps: int = 36, model: FEModel | None = None) -> BuckledMode | None:
     """The lowest mode at the instant of ``steps`` over the cycle where its stiffness eigenvalue is
     most negative, and the link that carries most of it (None: no negative eigenvalue).
 
@@ -82,13 +83,16 @@ def buckled_mode(mechanism, effects, steps: int = 36) -> BuckledMode | None:
     mechanism : Mechanism
         At the speed in question.
     effects : sequence of str
-        Linear effects of the stiffness (as :func:`kedfem.fe.effects.linear_effects` gives).
+        The scene's effects; the stiffness takes their linear part
+        (:func:`kedfem.fe.effects.linear_effects`).
     steps : int
         Crank positions over the cycle.
+    model : FEModel, optional
+        The mechanism's model, where one is built already (a solve's).
     """
-    model = FEModel(mechanism)
+    model = FEModel(mechanism) if model is None else model
     motion = kinematics(mechanism, steps=steps)
-    terms = Assembler(model, motion, tuple(effects), damping=None, frame=True).system()
+    terms = Assembler(model, motion, linear_effects(effects), damping=None, frame=True).system()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         f, phi = eig_frequencies(terms.M, terms.K, 1, shapes=True, name=mechanism.name,

@@ -462,7 +462,7 @@ def campbell(scene, speeds_rad_s, n_modes: int = 4, harmonics: int = 6, nodes: i
     if np.any(bands[:, 0, 0] < 0):  # which link buckles, at the first buckled speed
         first = float(s[int(np.argmax(bands[:, 0, 0] < 0))])
         bsc = scene_at(scene, first, effects=effects, owner=owner)
-        buckling = buckled_mode(bsc.mech, linear_effects(bsc.effects), nodes)
+        buckling = buckled_mode(bsc.mech, bsc.effects, nodes)
     res = CampbellResult(s, bands, ks, crossings(s, bands, ks), method, eff, nodes, sc.name or sc.mech.name,
                          buckling)
     log.info("campbell: %s, %d speeds, %d modes: %d crossings", res.name, s.size, k, len(res.crossings))

@@ -431,11 +431,11 @@ def critical_speed(scene, lo: float, hi: float, *, rtol: float = 5e-3, kind: str
 
     with bar("critical speed", "solve" if kind == "parametric" else "speed", max_solves, progress) as pbar:
         res = _search(evaluate, definite, side, lo, hi, scan, kind, what, rtol, evals, max_solves, effects, base)
-    buckled = [ev for ev in res.evaluations if ev.value < 0]
-    if kind == "buckling" and buckled:  # the link that buckles, at the buckled speed nearest the critical one
+    buckled = [ev for ev in res.evaluations if ev.value < 0] if kind == "buckling" else []
+    if buckled:  # the link that buckles, at the buckled speed nearest the critical one
         at = min(buckled, key=lambda ev: abs(ev.speed - res.speed)).speed
         sc = scene_at(scene, at, effects=effects, owner="critical_speed")
-        res = dataclasses.replace(res, buckled=buckled_mode(sc.mech, linear_effects(sc.effects), nodes))
+        res = dataclasses.replace(res, buckled=buckled_mode(sc.mech, sc.effects, nodes))
     (log.info if res.met else log.warning)("%s", res.describe())
     return res
 

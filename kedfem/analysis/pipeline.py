@@ -517,8 +517,7 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
             # analysis for a warning they catch)
             return ""
         from .buckling import buckled_mode
-        from ..fe.effects import linear_effects
-        mode = buckled_mode(self.scene.mech, linear_effects(self.scene.effects))
+        mode = buckled_mode(self.scene.mech, self.scene.effects, model=self.model)
         if mode is None:
             return ""
         return (f"; the stiffness has a negative eigenvalue over part of the cycle: {mode.describe()} "

@@ -195,14 +195,21 @@ class ResolutionFloor:
         """The process loads (declared with a profile) on each joint together [N] (samples, 2), at
         ``samples`` equally spaced instants (two one-stroke loads on a joint meet); empty without
         one or without ``loads`` among the scene's effects."""
-        loads = [ld for ld in self.scene.mech.loads.values() if ld.profile is not None]
-        if not loads or "loads" not in self.scene.effects:
-            return {}
-        mo = self._band_motion(samples)
         at: dict[str, np.ndarray] = {}
-        for ld in loads:
-            at[ld.joint] = at.get(ld.joint, 0.0) + load_force(mo, ld)
+        for name, F in self._process_loads(samples).items():
+            joint = self.scene.mech.loads[name].joint
+            at[joint] = at.get(joint, 0.0) + F
         return at
+
+    def _process_loads(self, samples: int) -> dict[str, np.ndarray]:
+        """Each process load (declared with a profile) [N] (samples, 2), by name, at ``samples``
+        equally spaced instants (computed once); empty without ``loads`` among the scene's effects."""
+        cache = self.__dict__.setdefault("_load_cache", {})
+        if samples not in cache:
+            loads = {name: ld for name, ld in self.scene.mech.loads.items() if ld.profile is not None}
+            mo = self._band_motion(samples) if loads and "loads" in self.scene.effects else None
+            cache[samples] = {name: load_force(mo, ld) for name, ld in loads.items()} if mo is not None else {}
+        return cache[samples]
 
     def corner_cost(self, n: int, floor: int, seconds: float) -> str | None:
         """What a tolerance-driven solve that ended on ``n`` time elements, at least
@@ -235,20 +242,17 @@ class ResolutionFloor:
         smoothing; a smooth one, however steep, changes by a sliver per sample), those among them
         that change by more than half of that there on their own (a press's forward and return
         loads that meet at the dead centre step each, not together)."""
-        mech, mo = self.scene.mech, self._band_motion(samples)
+        mech, each = self.scene.mech, self._process_loads(samples)
         out = {}
         for joint, F in self._joint_loads(samples).items():
             big = float(np.abs(F).max())
             change = np.abs(np.diff(F, axis=0, append=F[:1])).max(axis=1)
             if not (big > 0 and float(change.max()) > jump * big):
                 continue
-            k = int(np.argmax(change))
-            for name, ld in mech.loads.items():
-                if ld.profile is None or ld.joint != joint:
-                    continue
-                f = load_force(mo, ld)
-                if float(np.abs(f[(k + 1) % samples] - f[k]).max()) > 0.5 * change[k]:
-                    out[name] = float(mo.crank_angle[(k + 1) % samples])
+            k, k1 = int(np.argmax(change)), (int(np.argmax(change)) + 1) % samples
+            for name, f in each.items():
+                if mech.loads[name].joint == joint and float(np.abs(f[k1] - f[k]).max()) > 0.5 * change[k]:
+                    out[name] = float(self._band_motion(samples).crank_angle[k1])
         return out
 
     def _band_motion(self, samples: int):
