@@ -164,3 +164,20 @@ def test_passive_link_follows_chord_and_prescribes_stretch():
         EA = STEEL.E * bar.A
         # the bar (B -> G) pulls B towards G (+x) when it is stretched
         assert g.Q[i] == pytest.approx(EA / 0.35 * stretch[k], rel=1e-9, abs=1e-6)
+
+
+def test_geometric_nonlinearity_says_once_that_it_carries_the_axial_forces(monkeypatch, caplog):
+    """A continuation in speed builds an assembler per speed: the line was logged 511 times in one
+    run-up (the six-bar preset at 1600 rpm); it is said once per mechanism."""
+    import logging
+
+    from kedfem.fe import assembler as asm_mod
+    from kedfem.analysis.pipeline import assemble_scene
+
+    monkeypatch.setattr(asm_mod, "_TOLD_AXIAL", set())
+    sc = kf.Scene(mechanisms.build("four_bar"), effects=("inertia", "axial_stiffening", "geometric_nonlinearity"))
+    with caplog.at_level(logging.INFO, logger="kedfem.fe.assembler"):
+        for _ in range(3):
+            assemble_scene(sc, steps=8)
+    said = [r for r in caplog.records if "carries the axial forces" in r.getMessage()]
+    assert len(said) == 1

@@ -205,7 +205,8 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
     continuation in speed are its mixins, each in its own module.)
     """
 
-    def __init__(self, scene: Scene, progress: bool | None = None, start=None):
+    def __init__(self, scene: Scene, progress: bool | None = None, start=None, runup: bool = True,
+                 ladder: bool = False):
         self.t0 = time.perf_counter()
         self.scene = scene
         self.progress = progress
@@ -234,6 +235,12 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
         self._failed_problems: dict = {}  # n -> (instants, problem) of a level whose iteration failed
         self.path = ""       # how the non-linear response was reached, when not directly
         self.start = start   # a neighbour's response the first level starts from
+        # where Newton fails: continuation in speed (False: the level fails, a mesh check's comparison)
+        self.runup = runup
+        # steps given: solve the halvings of steps from the coarsest that resolves the excited modes
+        # up, each from the one before, as a tolerance-driven solve does (a mesh check's comparison
+        # where Newton from the result failed: the way the result's own solve got there)
+        self.ladder = ladder
         self._runup = None   # (n, Reached) of the last level reached by continuation in speed
         self.highest = None  # the highest speed the continuation reached, when it failed
         self._grids: dict[int, tuple] = {}
@@ -300,7 +307,8 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
                          f"{abs(self.start.model.mech.drives[0].speed) * RPM_PER_RAD_S:.4g} rpm)")
         if out.converged and out.rate is not None:
             self._rate = out.rate  # the finest level's Newton rate predicts the next level's changes
-        if prob.state and not out.converged and sc.nonlinear_method == "newton" and n >= self._need:
+        if (prob.state and not out.converged and sc.nonlinear_method == "newton" and n >= self._need
+                and self.runup):
             # a level that resolves the excited modes: continuation in speed (on a coarser one the
             # branch may turn where the finer ones run on; it is solved again from a finer level)
             out = self.homotopy(prob, out, eps, origin)
@@ -557,7 +565,7 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
         self._unsimulated()
         sc, scheme = self.scene, self.scheme
         est = None
-        need, f_res = self.resolution() if (sc.estimate or sc.steps is None) else (0, 0.0)
+        need, f_res = self.resolution() if (sc.estimate or sc.steps is None or self.ladder) else (0, 0.0)
         need = int(math.ceil(need * scheme.per_period))
         self._need = need
         self._stab_need, self._stab_f = self.stability_floor()
@@ -571,8 +579,15 @@ class _Run(ResolutionFloor, StabilityFloor, Forecast, LevelEstimates, Homotopy):
                     if m is None:
                         break
                     plan.insert(0, m)
+            elif self.ladder:
+                m, floor = n, max(need, START_ELEMENTS.get(scheme.name, 24))
+                while (m := _coarser(scheme, m)) is not None and m >= floor:
+                    plan.insert(0, m)
+                self._need = min(need, plan[0] if plan else n)  # the coarsest may run up, whatever its floor
             for m in plan + [n]:
-                self.level(m)
+                lv = self.level(m)
+                if self.ladder and not lv.converged:
+                    break  # (the failure names the level)
             n_out = self.output_steps(n)
             if sc.estimate:
                 est = self.estimate(n_out, need)

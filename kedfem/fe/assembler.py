@@ -31,6 +31,8 @@ from .structure import beam_coupling, beam_mass, beam_stiffness, objective_rates
 __all__ = ["Assembler", "SystemTerms", "slice_motion"]
 
 log = logging.getLogger(__name__)
+#: mechanisms whose assembler said that geometric_nonlinearity carries the links' axial forces
+_TOLD_AXIAL: set[str] = set()
 
 
 @dataclass
@@ -92,7 +94,10 @@ class Assembler:
         self.beam_member = np.array([motion.member_names.index(b.links[i]) for i in b.link], dtype=int)
         self._beam_joint_a = np.array([motion.joint_names.index(self.mech.links[b.links[i]].a)
                                        for i in b.link], dtype=int)
-        if self.carries_axial_forces and "axial_stiffening" in self.effects and b.L.size:
+        if (self.carries_axial_forces and "axial_stiffening" in self.effects and b.L.size
+                and self.mech.name not in _TOLD_AXIAL):
+            # once per mechanism: a continuation builds an assembler per speed (511 lines at 1600 rpm)
+            _TOLD_AXIAL.add(self.mech.name)
             log.info("geometric_nonlinearity carries the axial forces of the links: the links' k_G of "
                      "axial_stiffening is not added twice (rigid members keep theirs)")
         self._k_local = beam_stiffness(b)
