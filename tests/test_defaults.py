@@ -79,3 +79,19 @@ def test_static_response_names_a_declared_item_its_effects_leave_out(tmp_path):
     _path, m = build(tmp_path)
     with pytest.warns(EffectWarning, match=r"spring 'return' \(its preload\) is declared but the effects \(gravity, loads\)"):
         kf.static_response(m, effects=("gravity", "loads"))
+
+
+def test_a_scene_prints_as_one_line_with_its_knobs_not_its_whole_mechanism():
+    """print(scene) dumped every joint and link of the mechanism (2.6 kB for the four-bar; a new
+    user's trial): it names the mechanism and shows the effects, damping, tolerances and the knobs
+    set away from their defaults."""
+    import mechanisms
+
+    sc = kf.Scene(mechanisms.build("four_bar"))
+    text = repr(sc)
+    assert text == str(sc) and "\n" not in text and len(text) < 200
+    assert text.startswith("Scene('four-bar', effects=('inertia', 'coupling', 'axial_stiffening')")
+    assert "Joint(" not in text and "steps" not in text
+    other = kf.Scene(mechanisms.build("slider_crank"), steps=96, method="radau3", damping=None, accuracy="tight")
+    assert "steps=96" in repr(other) and "method='radau3'" in repr(other) and "damping=None" in repr(other)
+    assert "rtol=1e-05" in repr(other) and "accuracy" not in repr(other)

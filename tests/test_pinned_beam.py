@@ -257,3 +257,32 @@ def test_the_stretches_share_exactly_the_elements_given(elements):
     assert sum(c for _f, c, _le in lk.segments()) == lk.element_lengths.size == elements
     assert lk.nodes[lk.node_of("S1")] == pytest.approx(0.05) and lk.nodes[lk.node_of("S2")] == pytest.approx(1.95)
     assert np.isclose(lk.element_lengths.sum(), 2.0)
+
+
+def test_a_link_through_a_joint_keeps_one_colour_in_both_panels_of_the_link_plot(tmp_path, monkeypatch):
+    """A new user's six-bar: the link-response plot drew the coupler through the rocker's pin in one
+    colour per stretch above and another colour below (each panel's own colour cycle)."""
+    import matplotlib.colors as mcolors
+
+    from kedfem.io import plots
+
+    res = kf.solve(kf.Scene(four_bar(split=False), steps=48, estimate=False))
+    seen = {}
+
+    def keep(fig, path):
+        seen["fig"] = fig
+        return path
+
+    monkeypatch.setattr(plots, "_save", keep)
+    plots.link_response(res, tmp_path / "link_response.png")
+    top, bottom = seen["fig"].axes[:2]
+    colour = {}
+    for line in top.get_lines():
+        colour.setdefault(line.get_label().split()[0], set()).add(mcolors.to_hex(line.get_color()))
+    below = {line.get_label(): mcolors.to_hex(line.get_color()) for line in bottom.get_lines()}
+    assert set(below) == {"coupler", "rocker"} and len(colour["coupler"]) == 1
+    for name in below:
+        assert colour[name] == {below[name]}
+    assert len(set(below.values())) == 2
+    styles = {line.get_linestyle() for line in top.get_lines() if line.get_label().startswith("coupler")}
+    assert len(styles) == 2  # its two stretches told apart by line style

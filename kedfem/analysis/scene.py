@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import MISSING, dataclass, field, fields
 
 import numpy as np
 
@@ -221,6 +221,15 @@ class Scene:
                               else "no linkage turns this fast"))
         object.__setattr__(self, "_mech", mech)
 
+    def __repr__(self) -> str:
+        # one line: the mechanism by name (its own repr is every joint and link, 2.6 kB for the
+        # four-bar, which print(scene) dumped) and the knobs that differ from their defaults
+        knobs = [f"{k}={getattr(self, k)!r}" for k in ("steps", "hold", "speed", "max_iter", "nonlinear_method",
+                                                       "reduction", "name", "method", "estimate", "stiff_split")
+                 if getattr(self, k) != _SCENE_DEFAULTS[k]]
+        return (f"Scene({self.mechanism.name!r}, effects={self.effects!r}, damping={self.damping!r}, "
+                f"rtol={self.rtol:g}, eps={self.eps:g}{''.join(', ' + k for k in knobs)})")
+
     def with_accuracy(self, accuracy: str) -> "Scene":
         """The same scene with the ``rtol``, ``eps`` and ``delta`` of another preset."""
         import dataclasses
@@ -248,3 +257,6 @@ class Scene:
     def state_dependent(self) -> bool:
         """True if a chosen effect depends on the elastic state (the solve iterates)."""
         return any(e.state_dependent(self._mech) for e in chosen(self.effects))
+
+#: the defaults of the knobs a scene's repr leaves out when they have them
+_SCENE_DEFAULTS = {f.name: f.default for f in fields(Scene) if f.default is not MISSING}

@@ -133,6 +133,10 @@ def _title(res) -> str:
     return getattr(res.scene, "name", "") or res.model.mech.name
 
 
+#: line styles of the stretches of a link through joints (one colour per link)
+STRETCH_STYLES = ("-", "--", ":", "-.")
+
+
 def link_response(res, path, links: Sequence[str] | None = None) -> Path:
     """Mid-span deflection (relative to the chord) and dynamic stress of flexible links vs crank angle.
 
@@ -148,13 +152,17 @@ def link_response(res, path, links: Sequence[str] | None = None) -> Path:
     x, order = _cycle_deg(res.crank_angle)
     mech = res.model.mech
     any_stress = False
-    for lk in links:
+    for i, lk in enumerate(links):
+        # a link's colour in both panels (each panel's own cycle gave a link through joints one per
+        # stretch above and one below: a new user's six-bar had its coupler in two colours)
+        colour = f"C{i % 10}"
         stretches = mech.links[lk].stretches
         d = res.stretch_deflections(lk)
         for k, (ja, jb) in enumerate(stretches):  # a link through joints: each stretch from its chord
-            axes[0, 0].plot(x, _closed(1e3 * d[:, k], order), label=lk if len(stretches) == 1 else f"{lk} {ja}-{jb}")
+            axes[0, 0].plot(x, _closed(1e3 * d[:, k], order), color=colour, linestyle=STRETCH_STYLES[k % 4],
+                            label=lk if len(stretches) == 1 else f"{lk} {ja}-{jb}")
         if mech.links[lk].section.c is not None:
-            axes[1, 0].plot(x, _closed(1e-6 * res.stress(lk).max(axis=1), order), label=lk)
+            axes[1, 0].plot(x, _closed(1e-6 * res.stress(lk).max(axis=1), order), color=colour, label=lk)
             any_stress = True
     # in the summary's units (a new user read metres and pascals beside its mm and MPa)
     axes[0, 0].set_ylabel("mid-span deflection [mm]")
