@@ -192,3 +192,27 @@ def test_the_buckling_speed_names_the_link_euler_would():
         kf.solve(dataclasses.replace(scene_at(scene, 600 * RPM, effects=LINEAR), steps=96), progress=False)
     said = [str(w.message) for w in caught if issubclass(w.category, kf.InstabilityWarning)]
     assert len(said) == 1 and "link 'follower' buckles" in said[0], said
+
+
+@pytest.mark.parametrize("effects, says", [
+    (("inertia", "coupling", "axial_stiffening"), "the linear response there is not what the linkage does"),
+    (("inertia", "coupling", "geometric_nonlinearity"), "runs post-buckled there"),
+])
+def test_the_summarys_buckled_line_fits_a_linear_and_a_non_linear_scene(effects, says):
+    """A new user's Watt six-bar at 2000 rpm, converged and Floquet-stable under geometric_nonlinearity,
+    read that "the linear response there is not what the linkage does" beside a negative modal
+    frequency (the tangent stiffness at the response, frozen in time), and did not know what to believe."""
+    from kedfem.io.report import format_summary
+
+    res = kf.solve(kf.Scene(mechanisms.build("four_bar"), effects=effects, steps=48, estimate=False))
+    freqs = res.frequencies(2, nodes=list(range(0, res.n, 8)))
+    assert not (freqs.modal < 0).any()  # below the buckling speed: no such line
+    text = format_summary(res, freqs, res.peaks(), stages={}, files=[], out_dir=None, source="test", scene_time=0.0)
+    assert "BUCKLED" not in text
+    modal = freqs.modal.copy()
+    modal[: modal.shape[0] // 2, 0] *= -1.0  # as above a buckling speed: half the cycle
+    text = format_summary(res, dataclasses.replace(freqs, modal=modal), res.peaks(), stages={}, files=[],
+                          out_dir=None, source="test", scene_time=0.0)
+    line = next(x for x in text.splitlines() if "BUCKLED" in x)
+    assert says in line and "50 % of the cycle" in line
+    assert ("Floquet" in line) == ("geometric_nonlinearity" in effects)

@@ -100,3 +100,30 @@ def test_npz_histories_without_csv(slider_crank, tmp_path):
     assert names == ["histories.npz", "result.npz", "summary.txt"]
     z = np.load(tmp_path / "o" / "histories.npz")
     np.testing.assert_allclose(z["rod/stress_top_Pa"], fibre_stress(slider_crank, "rod").top)
+
+
+def test_a_safety_factor_another_fibre_governs_is_described_with_that_fibres_stresses():
+    """A new user's Watt six-bar: the line gave the largest range's fibre (bottom, mean -19.58 MPa,
+    alternating 46.57 MPa) beside "Goodman 3.58", which that fibre gives as 180 / 46.57 = 3.87; the
+    other fibre's tensile mean governed. The line now names the fibre and station each factor
+    comes from, whose numbers reproduce it."""
+    import re
+
+    from kedfem.analysis.fatigue import FibreStress, _link_fatigue
+
+    phase = np.linspace(0.0, 2 * np.pi, 73)[:-1, None]
+    # station 0: top fibre -20 +- 46.57 MPa (the largest range), bottom fibre +19 +- 43.6 MPa
+    top = np.hstack([-20e6 + 46.57e6 * np.sin(phase), 5e6 * np.sin(phase)])
+    bottom = np.hstack([19e6 + 43.6e6 * np.sin(phase), 4e6 * np.sin(phase)])
+    fs = FibreStress("coupler", np.array([0.0, 0.1]), phase[:, 0], top, bottom, top, top)
+    steel = kf.Material(E=2.1e11, rho=7850.0, yield_strength=350e6, ultimate_strength=420e6,
+                        endurance_limit=180e6)
+    lf = _link_fatigue(fs, steel)
+    assert lf.worst_fibre == "top" and lf.governing["Goodman"] == (0, 1)
+    assert lf.safety_goodman == pytest.approx(1.0 / (43.6 / 180 + 19 / 420), rel=1e-3)
+    text = lf.describe()
+    m = re.search(r"Goodman ([\d.]+) \(at 0\.0 mm, bottom fibre: mean ([\d.]+) MPa, alternating ([\d.]+) MPa\)", text)
+    assert m, text
+    n, mean, alt = (float(x) for x in m.groups())
+    assert n == pytest.approx(1.0 / (alt / 180 + mean / 420), rel=2e-3)  # the numbers shown give it
+    assert "top fibre: mean -20" in text  # the largest range as before

@@ -26,7 +26,7 @@ time resolution (the scene's tolerance holds for them as for the peaks).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -81,6 +81,9 @@ class LinkFatigue:
     worst_index : int
         Row of ``stations`` of the largest range (a station at a joint the link passes
         through appears twice, its ``a`` side first).
+    governing : dict
+        ``{"Goodman": (row, fibre), "Soderberg": (row, fibre)}``: where each factor is smallest
+        (a tensile mean can make it another station or fibre than the largest range's).
     """
 
     link: str
@@ -95,6 +98,7 @@ class LinkFatigue:
     safety_goodman: float | None
     safety_soderberg: float | None
     worst_index: int = -1
+    governing: dict = field(default_factory=dict)
 
     @property
     def largest_range(self) -> float:
@@ -109,10 +113,23 @@ class LinkFatigue:
         parts = [f"{self.link}: largest range {self.largest_range / 1e6:{g}} MPa at {self.worst_station * 1e3:.1f} mm "
                  f"({self.worst_fibre} fibre: mean {self.mean[i, f] / 1e6:{g}} MPa, alternating "
                  f"{self.alternating[i, f] / 1e6:{g}} MPa)"]
+        shown = None
         for name, v in (("yield", self.safety_yield), ("Goodman", self.safety_goodman),
                         ("Soderberg", self.safety_soderberg)):
             if v is not None:
-                parts.append(f"{name} {v:.3g}")
+                where = self.governing.get(name)
+                if where is not None and tuple(where) != (i, f) and tuple(where) == shown:
+                    parts.append(f"{name} {v:.3g} (there too)")
+                elif where is not None and tuple(where) != (i, f):
+                    shown = tuple(where)
+                    # the factor's own station and fibre (a new user got 180/46.57 = 3.87 from the
+                    # largest range's numbers where the line said Goodman 3.58, the other fibre's)
+                    k, h = where
+                    parts.append(f"{name} {v:.3g} (at {self.stations[k] * 1e3:.1f} mm, {('top', 'bottom')[h]} fibre: "
+                                 f"mean {self.mean[k, h] / 1e6:{g}} MPa, alternating "
+                                 f"{self.alternating[k, h] / 1e6:{g}} MPa)")
+                else:
+                    parts.append(f"{name} {v:.3g}")
         return "; safety ".join(parts[:2]) + (", " + ", ".join(parts[2:]) if len(parts) > 2 else "")
 
 
@@ -162,11 +179,13 @@ def fibre_stress(res, link: str, per_element: int = 1) -> FibreStress:
                        N / sec.A + bend, N, M)
 
 
-def _goodman(sa: np.ndarray, sm: np.ndarray, Se: float, S: float) -> float:
-    """Smallest ``n`` of ``1/n = sa/Se + max(sm, 0)/S`` (compressive means: ``n = Se/sa``) [-]."""
+def _goodman(sa: np.ndarray, sm: np.ndarray, Se: float, S: float) -> tuple[float, tuple[int, int]]:
+    """Smallest ``n`` of ``1/n = sa/Se + max(sm, 0)/S`` (compressive means: ``n = Se/sa``) [-], and
+    where it is (row, fibre) of ``sa`` (n_st, 2)."""
     inv = sa / Se + np.maximum(sm, 0.0) / S
-    worst = float(inv.max())
-    return math.inf if worst == 0.0 else 1.0 / worst
+    at = np.unravel_index(int(np.argmax(inv)), inv.shape)
+    worst = float(inv[at])
+    return (math.inf if worst == 0.0 else 1.0 / worst), (int(at[0]), int(at[1]))
 
 
 def _link_fatigue(fs: FibreStress, material, peak_stress: float = 0.0) -> LinkFatigue:
@@ -177,10 +196,11 @@ def _link_fatigue(fs: FibreStress, material, peak_stress: float = 0.0) -> LinkFa
     Sy, Sut, Se = material.yield_strength, material.ultimate_strength, material.endurance_limit
     peak = max(float(np.abs(both).max()), peak_stress if math.isfinite(peak_stress) else 0.0)
     n_y = (math.inf if peak == 0.0 else Sy / peak) if Sy else None
-    n_g = _goodman(alt, mean, Se, Sut) if (Se and Sut) else None
-    n_s = _goodman(alt, mean, Se, Sy) if (Se and Sy) else None
+    n_g, at_g = _goodman(alt, mean, Se, Sut) if (Se and Sut) else (None, None)
+    n_s, at_s = _goodman(alt, mean, Se, Sy) if (Se and Sy) else (None, None)
+    governing = {k: v for k, v in (("Goodman", at_g), ("Soderberg", at_s)) if v is not None}
     return LinkFatigue(fs.link, fs.stations, mean, alt, hi, lo, float(fs.stations[i]),
-                       ("top", "bottom")[f], n_y, n_g, n_s, int(i))
+                       ("top", "bottom")[f], n_y, n_g, n_s, int(i), governing)
 
 
 def fatigue_table(res, per_element: int = 4) -> FatigueTable:
