@@ -258,5 +258,6 @@ class Scene:
         """True if a chosen effect depends on the elastic state (the solve iterates)."""
         return any(e.state_dependent(self._mech) for e in chosen(self.effects))
 
+
 #: the defaults of the knobs a scene's repr leaves out when they have them
 _SCENE_DEFAULTS = {f.name: f.default for f in fields(Scene) if f.default is not MISSING}

@@ -104,12 +104,12 @@ def format_summary(res, freqs, peaks, *, stages: dict, files: list[Path], out_di
     buckled = np.asarray(freqs.modal) < 0
     if buckled.any():
         share = 100.0 * float(buckled.any(axis=1).mean())
-        if sc.state_dependent:
+        if "geometric_nonlinearity" in sc.effects:
             # (a new user's Watt six-bar at 2000 rpm, converged and stable under geometric_nonlinearity,
             # read "the linear response there is not what the linkage does" and did not know what to believe)
             L.append(f"  BUCKLED (frozen in time): the tangent stiffness at the response has a negative eigenvalue "
                      f"(shown as a negative modal frequency) over {share:.3g} % of the cycle; the linkage runs "
-                     f"post-buckled there, its large deflections carried by the non-linear effects; whether the "
+                     f"post-buckled there, its large deflections carried by geometric_nonlinearity; whether the "
                      f"response holds over the cycle is the Floquet stability below")
         else:
             L.append(f"  BUCKLED: a negative stiffness eigenvalue (shown as a negative modal frequency) over "
