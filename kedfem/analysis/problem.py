@@ -412,6 +412,11 @@ class PeriodicProblem:
             d = dataclasses.replace(d, resolver=None)
         return d, Un, Vn
 
+    def _unfreeze(self) -> None:
+        """The next :meth:`step` a full one (Newton's line search found no decrease along a chord
+        step's direction)."""
+        self._chord = None
+
     def _chord_step(self, U, V, dC, dK, dQ):
         """``G(x)`` by a chord step: the correction ``-J_0^-1 F(x)`` with the tangent ``J_0`` of
         the last full solve (its factorisations kept), ``F(x)`` the residual of the discrete
@@ -599,7 +604,7 @@ class PeriodicProblem:
             merit = self.merit if self.has_residual else None
             if method == "newton":
                 out = newton(self.step, self.instants.size, self.N, self.period, eps=eps, max_iter=max_iter,
-                             x0=x0, merit=merit, rate=rate)
+                             x0=x0, merit=merit, rate=rate, unfreeze=self._unfreeze)
                 return self._orbit_multipliers(Solved(
                     out.solution, bool(out.converged), len(out.history), tuple(float(h) for h in out.history),
                     method, list(caught), out.rate, out.predicted))
@@ -635,7 +640,8 @@ class PeriodicProblem:
             x0 = solved.discrete.instant_states()
             if solved.method == "newton":
                 out = newton(self.step, self.instants.size, self.N, self.period, eps=eps, max_iter=max_iter,
-                             x0=x0, merit=self.merit if self.has_residual else None, rate=rate)
+                             x0=x0, merit=self.merit if self.has_residual else None, rate=rate,
+                             unfreeze=self._unfreeze)
                 return self._orbit_multipliers(Solved(
                     out.solution, bool(out.converged), solved.iterations + len(out.history),
                     solved.history + tuple(float(h) for h in out.history), solved.method,
