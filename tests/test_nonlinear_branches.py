@@ -423,3 +423,18 @@ def test_the_mesh_check_of_a_non_linear_result_starts_from_it(monkeypatch):
         div = 1.0 - (lk.elements / coarse.links[p.link].elements) ** e.rate
         want = abs(fine[p.link].deflection - p.deflection) / fine[p.link].deflection / abs(div)
         assert math.isclose(e.deflection, want, rel_tol=1e-3, abs_tol=1e-9), (p.link, e.deflection, want)
+
+
+def test_a_response_reached_by_a_run_up_carries_its_own_orbits_multipliers():
+    """The run-up's last Newton may end on a chord step, whose Floquet multipliers are those of a
+    tangent frozen at another iterate (a new user's Watt six-bar by a resonance read a spectral
+    radius of 0.6845 where its response's own is 0.6787; here 0.242025 against 0.242138). The
+    result's multipliers are those a Newton solve started from it finds, to round-off."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = kf.solve(scene(350, steps=48, estimate=False))
+        again = kf.solve(scene(350, steps=48, estimate=False), start=res)
+    assert "continuation in speed" in res.path and "continuation" not in again.path
+    rho, rho_again = res.stability.spectral_radius, again.stability.spectral_radius
+    assert abs(rho / rho_again - 1) < 1e-6, (rho, rho_again)
+    assert all(abs(p.deflection / q.deflection - 1) < 1e-8 for p, q in zip(res.peaks(), again.peaks()))

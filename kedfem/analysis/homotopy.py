@@ -158,6 +158,15 @@ class Homotopy:
         log.info("%s: %s, %d solves, %.1f s", sc.mech.name, self.path, r.solves, time.perf_counter() - t0)
         d = r.point.discrete
         from .problem import Solved
+        if getattr(d, "chord", False):
+            # the continuation's last Newton ended on a chord step, whose multipliers are those of a
+            # tangent frozen up to CHORD_CHANGE away (a Watt six-bar by a resonance: spectral radius
+            # 0.6845 where its response's own is 0.6787): a full Newton step from it on this level
+            again = prob.solve(d.instant_states(), eps=eps, max_iter=3)
+            if again.converged:
+                return dataclasses.replace(again, iterations=failed.iterations + r.solves + again.iterations,
+                                           history=failed.history + again.history,
+                                           caught=list(caught) + list(again.caught))
         return Solved(d, True, failed.iterations + r.solves, failed.history, "newton", list(caught))
 
     def _coarse_start(self, target: float):
