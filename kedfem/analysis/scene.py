@@ -224,9 +224,7 @@ class Scene:
     def __repr__(self) -> str:
         # one line: the mechanism by name (its own repr is every joint and link, 2.6 kB for the
         # four-bar, which print(scene) dumped) and the knobs that differ from their defaults
-        knobs = [f"{k}={getattr(self, k)!r}" for k in ("steps", "hold", "speed", "max_iter", "nonlinear_method",
-                                                       "reduction", "name", "method", "estimate", "stiff_split")
-                 if getattr(self, k) != _SCENE_DEFAULTS[k]]
+        knobs = [f"{k}={getattr(self, k)!r}" for k, default in _SCENE_DEFAULTS.items() if getattr(self, k) != default]
         return (f"Scene({self.mechanism.name!r}, effects={self.effects!r}, damping={self.damping!r}, "
                 f"rtol={self.rtol:g}, eps={self.eps:g}{''.join(', ' + k for k in knobs)})")
 
@@ -259,5 +257,7 @@ class Scene:
         return any(e.state_dependent(self._mech) for e in chosen(self.effects))
 
 
-#: the defaults of the knobs a scene's repr leaves out when they have them
-_SCENE_DEFAULTS = {f.name: f.default for f in fields(Scene) if f.default is not MISSING}
+#: the knobs a scene's repr shows where they differ from these defaults (the effects and tolerances it always
+#: shows, resolved)
+_SCENE_DEFAULTS = {f.name: f.default for f in fields(Scene)
+                   if f.default is not MISSING and f.name not in ("effects", "rtol", "eps", "delta", "accuracy")}
